@@ -68,7 +68,9 @@ def _register() -> None:
 
 
 # Helpers append their module here (one entry each).
-_COMMAND_MODULES: list[str] = []
+_COMMAND_MODULES: list[str] = [
+    "_reproduce",
+]
 
 
 _register()

@@ -1,0 +1,2 @@
+"""Figures. The only package importing matplotlib; each study or result draws from its own
+private module here, and result objects' ``.plot()`` methods only delegate to these."""
