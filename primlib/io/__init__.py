@@ -1,0 +1,15 @@
+"""File formats at the edge of primlib: path and signal CSV tables, machine JSON.
+
+Every reader checks its file and raises :class:`primlib.InputError` with one sentence naming
+the file (and the line) and the fault; every writer writes atomically.
+"""
+
+from primlib.io._csv import read_uniform_table, write_table
+from primlib.io._path import read_path_csv, write_path_csv
+
+__all__ = [
+    "read_uniform_table",
+    "write_table",
+    "read_path_csv",
+    "write_path_csv",
+]
