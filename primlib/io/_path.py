@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import json
 import os
+import tempfile
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from primlib._errors import InputError
 from primlib.io._csv import read_uniform_table, write_table
 
-__all__ = ["PATH_HEADERS", "read_path_csv", "write_path_csv"]
+__all__ = ["PATH_HEADERS", "read_path_csv", "write_path_csv", "read_path_json", "write_path_json"]
 
 PATH_HEADERS = [("t", "x", "y"), ("t", "x", "y", "z")]
 """Accepted path CSV headers, 2-D and 3-D."""
@@ -61,3 +65,44 @@ def write_path_csv(path: str | os.PathLike, t: np.ndarray, points: np.ndarray) -
             f"{path}: expected path points of shape (n, 2) or (n, 3), got {points.shape}"
         )
     write_table(path, PATH_HEADERS[points.shape[1] - 2], t, points)
+
+
+def read_path_json(path: str | os.PathLike) -> Any:
+    """Parse a path JSON file (geomdl's exchange format; see ``Trajectory.from_json``).
+
+    Raises
+    ------
+    InputError
+        If the file is missing, unreadable, or not valid JSON (with the line of the fault).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such path JSON file") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: expected a path JSON text file, got binary data") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the path JSON file ({exc.strerror})") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(
+            f"{path}, line {exc.lineno}: expected JSON, got {exc.msg.lower()}"
+        ) from None
+
+
+def write_path_json(path: str | os.PathLike, data: Any) -> None:
+    """Write a JSON document atomically (temporary file in the same folder, then rename)."""
+    path = Path(path)
+    content = json.dumps(data, indent=1)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        os.fchmod(fd, 0o644)
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(content + "\n")
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
