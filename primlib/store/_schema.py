@@ -1,0 +1,145 @@
+"""The library's schema: ordered, recorded migrations.
+
+A library file starts empty (schema version 0). Each entry of :data:`MIGRATIONS` moves it one
+version forward; :func:`migrate` applies, in order, those above the file's version, each in
+its own transaction together with the bump of ``meta.schema_version`` and a row in
+``migrations`` (version, description, time applied, UTC). A failing step rolls back alone
+and leaves the file at the previous version. Steps are SQL text or a callable taking the
+connection. Never edit a released step: append a new one.
+
+Layout (version 2):
+
+``meta(key, value)``
+    ``application = primlib`` marks a primlib library; ``schema_version``.
+``migrations(version, description, applied)``
+    One row per applied step.
+``machines(name, kind, dt, axes, definition, added)``
+    ``definition`` is the machine's JSON (API.md format), from which
+    :meth:`primlib.plant.Machine.from_dict` rebuilds it.
+``primitives(id, machine, name, source, added, duration, dt, dim, n_samples, degree, knots,
+ctrlpts, weights, points, signal)``
+    The NURBS definition (``ctrlpts`` flattened row-major, m x dim), and the path and its
+    signal sampled on the machine's grid t = 0, dt, ..., T, each a flattened row-major
+    (n_samples x dim) ``DOUBLE[]``. DuckDB stores columns apart, so listing metadata never
+    reads the arrays. ``id`` is the primary key (a unique ART index: one row by id without
+    a scan) and comes from the sequence ``primitive_ids``, so a removed id is never reused.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import UTC, datetime
+from typing import Any
+
+__all__ = ["APPLICATION", "MIGRATIONS", "SCHEMA_VERSION", "Migration", "migrate", "utcnow"]
+
+APPLICATION = "primlib"
+
+Migration = tuple[int, str, "str | Callable[[Any], None]"]
+
+MIGRATIONS: list[Migration] = [
+    (
+        1,
+        "meta, migration log and machines",
+        """
+        CREATE TABLE meta (key VARCHAR PRIMARY KEY, value VARCHAR NOT NULL);
+        CREATE TABLE migrations (
+            version INTEGER PRIMARY KEY,
+            description VARCHAR NOT NULL,
+            applied TIMESTAMP NOT NULL
+        );
+        CREATE TABLE machines (
+            name VARCHAR PRIMARY KEY,
+            kind VARCHAR NOT NULL,
+            dt DOUBLE NOT NULL,
+            axes VARCHAR[] NOT NULL,
+            definition VARCHAR NOT NULL,
+            added TIMESTAMP NOT NULL
+        );
+        INSERT INTO meta VALUES ('application', 'primlib'), ('schema_version', '0');
+        """,
+    ),
+    (
+        2,
+        "primitives: NURBS definition, and path and signal on the machine's dt grid",
+        """
+        CREATE SEQUENCE primitive_ids START 1;
+        CREATE TABLE primitives (
+            id BIGINT PRIMARY KEY,
+            machine VARCHAR NOT NULL,
+            name VARCHAR,
+            source VARCHAR,
+            added TIMESTAMP NOT NULL,
+            duration DOUBLE NOT NULL,
+            dt DOUBLE NOT NULL,
+            dim INTEGER NOT NULL,
+            n_samples INTEGER NOT NULL,
+            degree INTEGER NOT NULL,
+            knots DOUBLE[] NOT NULL,
+            ctrlpts DOUBLE[] NOT NULL,
+            weights DOUBLE[] NOT NULL,
+            points DOUBLE[] NOT NULL,
+            signal DOUBLE[] NOT NULL
+        );
+        """,
+    ),
+]
+
+SCHEMA_VERSION = MIGRATIONS[-1][0]
+"""The schema version this primlib writes and reads."""
+
+
+def utcnow() -> datetime:
+    """The current UTC time as a naive datetime (DuckDB ``TIMESTAMP``), to the microsecond."""
+    return datetime.now(UTC).replace(tzinfo=None)
+
+
+def check_migrations(migrations: list[Migration]) -> None:
+    """Raise ValueError unless versions run 1, 2, 3, ... in order (a programming error)."""
+    versions = [m[0] for m in migrations]
+    if versions != list(range(1, len(versions) + 1)):
+        raise ValueError(f"migrations must be numbered 1, 2, ... in order, got {versions}")
+
+
+def migrate(con: Any, current: int, migrations: list[Migration] | None = None) -> list[int]:
+    """Apply the migrations above ``current``, in order, one transaction each.
+
+    Parameters
+    ----------
+    con : duckdb connection
+        A writable connection to the library.
+    current : int
+        The file's schema version (0 for a file with no tables).
+    migrations : list of (version, description, step), optional
+        Defaults to :data:`MIGRATIONS`; tests pass longer lists to exercise upgrades.
+
+    Returns
+    -------
+    list of int
+        The versions applied (empty when the file was up to date).
+    """
+    migrations = MIGRATIONS if migrations is None else migrations
+    check_migrations(migrations)
+    applied = []
+    for version, description, step in migrations:
+        if version <= current:
+            continue
+        con.begin()
+        try:
+            if callable(step):
+                step(con)
+            else:
+                con.execute(step)
+            con.execute(
+                "UPDATE meta SET value = $v WHERE key = 'schema_version'", {"v": str(version)}
+            )
+            con.execute(
+                "INSERT INTO migrations VALUES ($v, $d, $t)",
+                {"v": version, "d": description, "t": utcnow()},
+            )
+            con.commit()
+        except BaseException:
+            con.rollback()
+            raise
+        applied.append(version)
+    return applied

@@ -1,0 +1,182 @@
+"""Records the library returns: :class:`PrimitiveInfo`, :class:`Primitive`, :class:`Bank`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+import numpy as np
+
+__all__ = ["PrimitiveInfo", "Primitive", "Bank"]
+
+
+@dataclass(frozen=True)
+class PrimitiveInfo:
+    """What the library knows about a stored primitive, without its arrays.
+
+    Attributes
+    ----------
+    id : int
+        The primitive's id (never reused after removal).
+    name : str or None
+    machine : str
+        The machine whose signal this is.
+    duration : float
+        T, seconds.
+    dt : float
+        The machine's sample time the path and signal are stored at, seconds.
+    n_samples : int
+        n = round(T / dt) + 1.
+    dim : int
+        Number of axes d.
+    source : str or None
+        Where it came from (a file name, ``"ilc"``...).
+    added : datetime
+        When it was stored, UTC (timezone-aware).
+    """
+
+    id: int
+    name: str | None
+    machine: str
+    duration: float
+    dt: float
+    n_samples: int
+    dim: int
+    source: str | None
+    added: datetime
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary (``added`` in ISO 8601)."""
+        return {
+            "id": self.id,
+            "name": self.name,
+            "machine": self.machine,
+            "duration": self.duration,
+            "dt": self.dt,
+            "n_samples": self.n_samples,
+            "dim": self.dim,
+            "source": self.source,
+            "added": self.added.isoformat(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Primitive(PrimitiveInfo):
+    """A stored primitive with its curve and arrays.
+
+    Attributes
+    ----------
+    trajectory : primlib.nurbs.Trajectory
+        The NURBS path, rebuilt from its stored definition.
+    points : array, shape (n_samples, dim)
+        The path at t = 0, dt, ..., T.
+    signal : array, shape (n_samples, dim)
+        The learned input on the same grid.
+    """
+
+    trajectory: Any
+    points: np.ndarray
+    signal: np.ndarray
+
+    def times(self) -> np.ndarray:
+        """The time grid t = 0, dt, ..., T, shape (n_samples,)."""
+        return np.arange(self.n_samples) * self.dt
+
+
+@dataclass(frozen=True, eq=False)
+class Bank:
+    """All primitives of one machine as flat arrays, for matching without a row loop.
+
+    Primitive i (0 <= i < len(bank), ordered by id) owns samples
+    ``offsets[i]:offsets[i + 1]`` of ``points`` and ``signals``.
+
+    Attributes
+    ----------
+    machine : str
+    dt : float
+        The machine's sample time, seconds.
+    dim : int
+        Number of axes d.
+    ids : array of int64, shape (k,)
+    names : tuple of (str or None), length k
+    durations : array, shape (k,)
+        Seconds.
+    offsets : array of int64, shape (k + 1,)
+        Sample offsets; ``np.diff(offsets)`` are the sample counts.
+    points : array, shape (N, d)
+        Every primitive's path on the dt grid, concatenated (N = offsets[-1]).
+    signals : array, shape (N, d)
+        Every primitive's signal on the same grid, concatenated.
+    degrees : array of int64, shape (k,)
+        NURBS degrees.
+    knots, knot_offsets : array (K,), array of int64 (k + 1,)
+        Knot vectors concatenated, and where each starts.
+    ctrlpts : array, shape (M, d)
+        Control points concatenated.
+    weights : array, shape (M,)
+    ctrl_offsets : array of int64, shape (k + 1,)
+        Where each primitive's control points (and weights) start.
+    """
+
+    machine: str
+    dt: float
+    dim: int
+    ids: np.ndarray
+    names: tuple[str | None, ...]
+    durations: np.ndarray
+    offsets: np.ndarray
+    points: np.ndarray
+    signals: np.ndarray
+    degrees: np.ndarray
+    knots: np.ndarray
+    knot_offsets: np.ndarray
+    ctrlpts: np.ndarray
+    weights: np.ndarray
+    ctrl_offsets: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    @property
+    def n_samples(self) -> np.ndarray:
+        """Samples per primitive, shape (k,)."""
+        return np.diff(self.offsets)
+
+    def index(self, id: int) -> int:
+        """Position in the bank of the primitive with this id (KeyError if absent)."""
+        i = int(np.searchsorted(self.ids, id))
+        if i >= len(self.ids) or self.ids[i] != id:
+            raise KeyError(id)
+        return i
+
+    def points_of(self, i: int) -> np.ndarray:
+        """Path samples of primitive i, shape (n_i, d) (a view)."""
+        return self.points[self.offsets[i] : self.offsets[i + 1]]
+
+    def signal_of(self, i: int) -> np.ndarray:
+        """Signal of primitive i, shape (n_i, d) (a view)."""
+        return self.signals[self.offsets[i] : self.offsets[i + 1]]
+
+    def times_of(self, i: int) -> np.ndarray:
+        """Time grid of primitive i, shape (n_i,)."""
+        return np.arange(self.offsets[i + 1] - self.offsets[i]) * self.dt
+
+    def trajectory(self, i: int) -> Any:
+        """The NURBS path of primitive i, a :class:`primlib.nurbs.Trajectory`."""
+        from primlib.nurbs import Trajectory
+
+        c0, c1 = self.ctrl_offsets[i], self.ctrl_offsets[i + 1]
+        return Trajectory.from_definition(
+            int(self.degrees[i]),
+            self.knots[self.knot_offsets[i] : self.knot_offsets[i + 1]],
+            self.ctrlpts[c0:c1],
+            self.weights[c0:c1],
+            float(self.durations[i]),
+        )
+
+    def __repr__(self) -> str:
+        return (
+            f"Bank(machine={self.machine!r}, {len(self)} primitives, "
+            f"{int(self.offsets[-1])} samples, dt={self.dt})"
+        )
