@@ -5,11 +5,16 @@ the file (and the line) and the fault; every writer writes atomically.
 """
 
 from primlib.io._csv import read_uniform_table, write_table
-from primlib.io._path import read_path_csv, write_path_csv
+from primlib.io._path import read_path_csv, read_path_json, write_path_csv, write_path_json
+from primlib.io._signal import read_signal_csv, write_signal_csv
 
 __all__ = [
     "read_uniform_table",
     "write_table",
     "read_path_csv",
     "write_path_csv",
+    "read_path_json",
+    "write_path_json",
+    "read_signal_csv",
+    "write_signal_csv",
 ]
