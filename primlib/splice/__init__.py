@@ -1,0 +1,65 @@
+"""Splice: stored inputs transformed and joined into a new path's first-iteration input.
+
+Pipeline (primitive-matching paper §3.3): a :class:`~primlib.match.Match` says which stored
+primitive covers which segment of the new path, with rotation R, translation p and time
+scale k; each primitive's converged input is
+
+1. time-scaled — model-based from one stored version, ``u_l(k t)`` through the filter
+   ``G(s/k) / G(s)`` of the nominal model (:func:`time_scale`), or model-free from
+   versions stored at several durations, eq. (20) (:func:`time_scale_direct`);
+2. superposed — axes mixed through ``P_j / P_i`` (exactly R between identical axes) plus the
+   holding input of the translation (:func:`superpose`, :func:`holding_input`);
+3. spliced — windows cut from the whole transformed primitive and joined by linear
+   transition bands at the junctions, the paper's three cases overlap / gap / continuous
+   (:func:`splice`); unmatched segments get the nominal-model inverse.
+
+:func:`warm_start` does all of it from a library; :func:`learn_signal` runs ILC from it.
+
+Which time scaling is used when: a piece with k = 1 on the grid uses the stored input as it
+is; otherwise "auto" uses eq. (20) when the primitive is stored at as many distinct
+durations as the model's inverse has derivative orders (2 on the XYZ machine, eq. (24)) on
+an open-loop all-pole machine, and the model-based transform in every other case (one
+version, plants with zeros such as the non-minimum-phase PDCCILC stage, PID loops).
+
+Notation: signals ``u`` have shape (n, d) on the machine's dt grid; ``k`` = primitive
+duration / new duration; signals and outputs are deviations from the path's first point.
+"""
+
+from primlib.splice._continuous import continuous_output, resample_zoh
+from primlib.splice._splice import METHODS, Band, SpliceResult, StoredSignal, splice
+from primlib.splice._transform import (
+    derivative_orders,
+    holding_input,
+    superpose,
+    time_scale,
+    time_scale_direct,
+    transform,
+)
+from primlib.splice._warm import (
+    WarmStart,
+    find_versions,
+    learn_signal,
+    stored_signals,
+    warm_start,
+)
+
+__all__ = [
+    "time_scale",
+    "time_scale_direct",
+    "superpose",
+    "transform",
+    "holding_input",
+    "derivative_orders",
+    "splice",
+    "Band",
+    "SpliceResult",
+    "StoredSignal",
+    "METHODS",
+    "WarmStart",
+    "warm_start",
+    "learn_signal",
+    "find_versions",
+    "stored_signals",
+    "continuous_output",
+    "resample_zoh",
+]

@@ -1,0 +1,160 @@
+"""Between the samples: the exact continuous output of a ZOH-driven machine, and resampling.
+
+A machine's input is held constant over each sample interval (zero-order hold), so its
+continuous output between samples is known exactly from the continuous plant. Time scaling
+needs the output of a stored primitive at times ``k t`` that are not on the dt grid; this
+module computes it without interpolation error.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import linalg, signal
+
+__all__ = ["continuous_output", "plant_input", "resample_zoh", "resample_linear"]
+
+
+def plant_input(machine, u: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
+    """The held plant input per axis: ``u`` plus the PID output where an axis has feedback.
+
+    Parameters
+    ----------
+    machine : Machine
+    u : array, shape (n, d)
+    reference : array, shape (n, d), optional
+        PID reference (None: zeros).
+
+    Returns
+    -------
+    v : array, shape (n, d)
+        What the zero-order hold applies to each plant over [t_j, t_j + dt).
+    """
+    u = np.asarray(u, dtype=float)
+    controllers = machine.controllers() if machine.feedback else [None] * machine.dim
+    if all(c is None for c in controllers):
+        return u.copy()
+    ref = np.zeros_like(u) if reference is None else np.asarray(reference, dtype=float)
+    y = machine.simulate(u, ref)
+    v = u.copy()
+    for i, cg in enumerate(controllers):
+        if cg is not None:
+            c, g = cg
+            v[:, i] += signal.lfilter(c, g, ref[:, i] - y[:, i])
+    return v
+
+
+def continuous_output(
+    machine, u: np.ndarray, times: np.ndarray, reference: np.ndarray | None = None
+) -> np.ndarray:
+    """Exact output of the machine between samples, for a zero-order-held input.
+
+    The plant input ``v`` (see :func:`plant_input`) is held over [j dt, (j + 1) dt); the
+    state at the grid points follows the ZOH recursion ``x[j+1] = Ad x[j] + Bd v[j]`` and
+    between them ``y(j dt + tau) = C (e^{A tau} x[j] + Gamma(tau) B v[j]) + D v[j]``, with
+    ``e^{A tau}`` and ``Gamma(tau) B`` read off one batched matrix exponential of
+    ``[[A, B], [0, 0]] tau``. After the last sample the last input is held; before t = 0
+    the machine is at rest (output 0); at t = 0 a direct feedthrough already acts.
+
+    Parameters
+    ----------
+    machine : Machine
+    u : array, shape (n, d)
+        Input on the machine's dt grid.
+    times : array, shape (m,)
+        Times in seconds, any order, any spacing.
+    reference : array, shape (n, d), optional
+        PID reference of the run that produced ``u``'s output.
+
+    Returns
+    -------
+    y : array, shape (m, d)
+        Output relative to the start point; equals ``machine.simulate(u, reference)`` at
+        the grid times to rounding.
+    """
+    v = plant_input(machine, u, reference)
+    n = v.shape[0]
+    dt = machine.dt
+    times = np.asarray(times, dtype=float)
+    out = np.zeros((times.size, machine.dim))
+    pos = times >= 0.0
+    tp = times[pos]
+    j = np.minimum(np.floor(tp / dt + 1e-12).astype(int), n - 1)
+    tau = tp - j * dt
+    # a time within rounding of a grid point is that grid point (avoids e^{A dt} vs x[j+1])
+    tau = np.where(np.abs(tau) < 1e-12 * dt, 0.0, tau)
+    for i, axis in enumerate(machine.axes):
+        num, den = machine.plants[axis]
+        a_c, b_c, c_c, d_c = signal.tf2ss(num, den)
+        nx = a_c.shape[0]
+        vi = v[:, i]
+        if nx == 0:
+            out[pos, i] = d_c[0, 0] * vi[j]
+            continue
+        ad, bd, _, _, _ = signal.cont2discrete((a_c, b_c, c_c, d_c), dt, method="zoh")
+        nums, den_d = signal.ss2tf(ad, bd, np.eye(nx), np.zeros((nx, 1)))
+        x = np.stack([signal.lfilter(nums[r], den_d, vi) for r in range(nx)], axis=1)
+        aug = np.zeros((tau.size, nx + 1, nx + 1))
+        aug[:, :nx, :nx] = a_c[None] * tau[:, None, None]
+        aug[:, :nx, nx] = b_c[:, 0][None] * tau[:, None]
+        e = linalg.expm(aug)
+        xs = np.einsum("mab,mb->ma", e[:, :nx, :nx], x[j]) + e[:, :nx, nx] * vi[j][:, None]
+        out[pos, i] = xs @ c_c[0] + d_c[0, 0] * vi[j]
+    return out
+
+
+def resample_linear(values: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Linear interpolation of rows at fractional sample positions, held at both ends.
+
+    Parameters
+    ----------
+    values : array, shape (n, d)
+    positions : array, shape (m,)
+        Fractional row indices.
+
+    Returns
+    -------
+    array, shape (m, d)
+    """
+    values = np.asarray(values, dtype=float)
+    n = values.shape[0]
+    x = np.clip(positions, 0.0, n - 1.0)
+    lo = np.minimum(np.floor(x).astype(int), n - 2) if n > 1 else np.zeros(x.size, int)
+    if n == 1:
+        return np.repeat(values, x.size, axis=0)
+    frac = (x - lo)[:, None]
+    return values[lo] * (1.0 - frac) + values[lo + 1] * frac
+
+
+def resample_zoh(u: np.ndarray, k: float, n: int, offset: float, dt: float) -> np.ndarray:
+    """A zero-order-held signal run k times faster, on a new dt grid.
+
+    A held sample ``u[j]`` acts like the underlying smooth input at the middle of its
+    interval, ``(j + 1/2) dt`` (the output of a ZOH lags the continuous input by dt/2), so
+    the new sample ``q`` — held over [offset + q dt, offset + (q + 1) dt) in new time — is
+    the old signal at old time ``k (offset + (q + 1/2) dt)``, i.e. at the fractional index
+    ``k (offset / dt + q + 1/2) - 1/2``, linearly interpolated. Before the start the
+    signal is 0 (at rest); after the end its last value is held. The error for a smooth
+    input is O(dt^2) times its second derivative; this is only a first guess — the
+    model-based transform corrects it at the samples.
+
+    Parameters
+    ----------
+    u : array, shape (n_old, d)
+    k : float
+        Time scale: new sample time t corresponds to old time k t.
+    n : int
+        Number of new samples.
+    offset : float
+        New time of new sample 0, seconds (<= 0 when the old signal starts at or after it).
+    dt : float
+
+    Returns
+    -------
+    array, shape (n, d)
+    """
+    q = np.arange(n)
+    mid_old = k * (offset + (q + 0.5) * dt)
+    pos = mid_old / dt - 0.5
+    w = resample_linear(u, pos)
+    w[mid_old < 0.0] = 0.0
+    return w

@@ -1,0 +1,392 @@
+"""Splicing transformed pieces into one first-iteration input (primitive-matching paper §3.3.3).
+
+Each matched segment of the new path gets its primitive's stored input transformed (time
+scale, rotation, holding input for the translation — whole primitive from rest, then the
+window cut out); consecutive pieces are joined by a transition band in which the input is
+linearly interpolated from one piece to the next (the paper's "无扰切换", bumpless switch).
+
+The paper's junction cases (figure 6) are told apart by where the two transformed pieces
+put the junction point, measured along the path's tangent and converted to time:
+``delta = (end of piece j - start of piece j+1) . v / |v|^2``.
+
+- overlap (case ①, ΔT < 0 in eq. (22)): delta > dt/2, piece j runs past where piece j+1
+  starts;
+- gap (case ②, ΔT > 0): delta < -dt/2, piece j stops short of piece j+1;
+- continuous (case ③, ΔT = 0): |delta| <= dt/2.
+
+The band is centred on the junction, ``band`` seconds wide, widened to cover the mismatch
+(2|delta| + 2 dt) in the first two cases, and confined to where both pieces are defined
+(the paper's points c_j and b_{j+1} lie on both pieces): a piece extends past its window only
+as far as its primitive goes on, so two rest-to-rest primitives meet with no band at all —
+blending a moving piece with one that has not started would only add error. Unlike eq. (23), which concatenates pieces of
+their own durations and then corrects the total length, each piece here is time-scaled to
+exactly its segment (the matcher's time scale), so the spliced input is on the machine's dt
+grid with exactly the new path's length and the paper's length error sum ΔT is zero by
+construction; the junction cases only set the band.
+
+An unmatched segment is filled with the nominal-model inverse of the new path
+(:func:`primlib.plant.invert`, computed once over the whole path so its state is right at
+the window), and said so in the result.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from primlib._errors import InputError
+from primlib.splice._continuous import resample_linear
+from primlib.splice._transform import (
+    derivative_orders,
+    holding_input,
+    time_scale_direct,
+    transform,
+)
+
+__all__ = ["Band", "StoredSignal", "SpliceResult", "splice", "METHODS"]
+
+METHODS = ("auto", "model", "direct")
+
+
+@dataclass(frozen=True)
+class StoredSignal:
+    """What the splice needs of one stored primitive.
+
+    Attributes
+    ----------
+    signal : array, shape (n_l, d)
+        Converged input on the machine's dt grid.
+    points : array, shape (n_l, d)
+        The primitive's path sampled on the same grid (absolute coordinates).
+    duration : float
+        Seconds.
+    name : str or None
+    versions : tuple of (signal, duration)
+        The same primitive (same shape and pose) stored at other durations, for eq. (20).
+    """
+
+    signal: np.ndarray
+    points: np.ndarray
+    duration: float
+    name: str | None = None
+    versions: tuple = ()
+
+
+@dataclass(frozen=True)
+class Band:
+    """A transition band between two consecutive pieces.
+
+    Attributes
+    ----------
+    junction : float
+        Time of the junction on the new path, seconds.
+    start, end : float
+        The band, seconds: the input goes linearly from the earlier piece's to the later's.
+    kind : str
+        ``"overlap"``, ``"gap"`` or ``"continuous"`` (paper's cases ①, ②, ③).
+    delta : float
+        Along-path mismatch of the two pieces at the junction, seconds (> 0 overlap).
+    distance : float
+        Distance between the two pieces' junction points, user units.
+    """
+
+    junction: float
+    start: float
+    end: float
+    kind: str
+    delta: float
+    distance: float
+
+    def to_dict(self) -> dict:
+        return {k: (v if isinstance(v, str) else float(v)) for k, v in self.__dict__.items()}
+
+
+@dataclass(frozen=True)
+class SpliceResult:
+    """The spliced input and how each part of it was made.
+
+    Attributes
+    ----------
+    u : array, shape (n, d)
+    bands : tuple of Band
+    sample_segment : array of int, shape (n,)
+        Index of the segment each sample belongs to (bands blend it with a neighbour).
+    sources : tuple of str
+        One line per segment saying where its input came from.
+    methods : tuple of str
+        Per segment: ``"identity"``, ``"model"``, ``"direct"`` or ``"inverse"``.
+    notes : tuple of str
+    """
+
+    u: np.ndarray
+    bands: tuple[Band, ...]
+    sample_segment: np.ndarray
+    sources: tuple[str, ...]
+    methods: tuple[str, ...]
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _interp_point(points: np.ndarray, v: float) -> np.ndarray:
+    """Point at normalised time v of a path sampled on a uniform grid."""
+    return resample_linear(points, np.array([v * (points.shape[0] - 1)]))[0]
+
+
+def _piece_geometry(seg, prim: StoredSignal):
+    r = np.asarray(seg.rotation, dtype=float)
+    c = np.asarray(seg.translation, dtype=float)
+    a = r @ _interp_point(prim.points, seg.primitive_start) + c
+    b = r @ _interp_point(prim.points, seg.primitive_end) + c
+    return a, b
+
+
+def _reach(seg, stored, side: str) -> float:
+    """New-path time a piece's primitive extends before its window start or after its end."""
+    if seg.primitive is None:
+        return np.inf  # the path's own inverse is defined everywhere
+    prim = stored[seg.primitive]
+    k = float(seg.time_scale)
+    if not np.isfinite(k) or k <= 0:
+        return 0.0
+    frac = seg.primitive_start if side == "before" else 1.0 - seg.primitive_end
+    return max(0.0, frac) * float(prim.duration) / k
+
+
+def splice(
+    machine,
+    points,
+    duration: float,
+    segments: Sequence,
+    stored: Mapping[int, StoredSignal],
+    *,
+    band: float | None = None,
+    method: str = "auto",
+) -> SpliceResult:
+    """First-iteration input of a new path from its matched segments.
+
+    Parameters
+    ----------
+    machine : Machine
+        Nominal model of the machine the signals were learned for.
+    points : array, shape (n, d)
+        The new path on the machine's grid t = 0, dt, ..., n = round(duration / dt) + 1.
+    duration : float
+        The new path's duration, seconds.
+    segments : sequence of Segment
+        In path order, contiguous from 0 to 1 (a :class:`primlib.match.Match`'s segments).
+    stored : mapping primitive id -> StoredSignal
+        Every matched primitive's stored signal and points.
+    band : float, optional
+        Transition band width in seconds (default 8 dt); 0 switches abruptly.
+    method : {"auto", "model", "direct"}
+        Time scaling: model-based (one version, the nominal model's filter G(s/k)/G(s)),
+        model-free eq. (20) (needs ``versions``), or "auto": eq. (20) when the primitive
+        is stored at as many distinct durations as the model has derivative orders
+        (:func:`derivative_orders`) and the piece is time-scaled (k != 1), else
+        model-based. A piece with k = 1 on the grid needs no time scaling at all.
+
+    Returns
+    -------
+    SpliceResult
+
+    Raises
+    ------
+    InputError
+        For a bad shape, non-contiguous segments, an unknown method or a negative band.
+    """
+    if method not in METHODS:
+        raise InputError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    dt = machine.dt
+    pts = np.asarray(points, dtype=float)
+    n = int(round(float(duration) / dt)) + 1
+    if pts.ndim != 2 or pts.shape != (n, machine.dim):
+        raise InputError(
+            f"points: expected shape ({n}, {machine.dim}) for a {duration} s path at dt {dt}, "
+            f"got {pts.shape}"
+        )
+    band = 8 * dt if band is None else float(band)
+    if not np.isfinite(band) or band < 0:
+        raise InputError(f"band: expected a width >= 0 s, got {band}")
+    segs = list(segments)
+    if not segs:
+        raise InputError("segments: expected at least one segment, got none")
+    bounds = np.array([[s.start, s.end] for s in segs], dtype=float)
+    if (
+        abs(bounds[0, 0]) > 1e-9
+        or abs(bounds[-1, 1] - 1.0) > 1e-9
+        or np.any(np.abs(bounds[1:, 0] - bounds[:-1, 1]) > 1e-9)
+        or np.any(bounds[:, 1] < bounds[:, 0])
+    ):
+        raise InputError(
+            f"segments: expected contiguous segments from 0 to 1, got {bounds.tolist()}"
+        )
+    T = float(duration)
+    t = np.arange(n) * dt
+    y_d = pts - pts[0]
+    feedback = bool(machine.feedback)
+    orders = derivative_orders(machine)
+    notes: list[str] = []
+
+    # junction geometry first: it sets the band widths, which set each piece's extent
+    bands: list[Band] = []
+    half = np.zeros((len(segs), 2))  # band half-widths before / after each segment
+    vel = np.gradient(pts, dt, axis=0)
+    extent = float(np.max(np.ptp(pts, axis=0))) or 1.0
+    for j in range(len(segs) - 1):
+        tj = bounds[j, 1] * T
+        left, right = segs[j], segs[j + 1]
+        if left.primitive is not None and right.primitive is not None:
+            _, e = _piece_geometry(left, stored[left.primitive])
+            s, _ = _piece_geometry(right, stored[right.primitive])
+        else:
+            e = s = _interp_point(pts, bounds[j, 1])
+        gap = e - s
+        v = _interp_point(vel, bounds[j, 1])
+        speed2 = float(v @ v)
+        dist = float(np.linalg.norm(gap))
+        if speed2 > (1e-9 * extent / dt) ** 2:
+            delta = float(gap @ v) / speed2
+            kind = "overlap" if delta > dt / 2 else "gap" if delta < -dt / 2 else "continuous"
+        else:  # junction at rest: no along-path time
+            delta = 0.0
+            kind = "continuous" if dist <= 1e-6 * extent else "gap"
+        width = band if kind == "continuous" else max(band, 2 * abs(delta) + 2 * dt)
+        # the band lies where both pieces are defined: piece j beyond its window only while
+        # its primitive goes on, piece j+1 before its window only after its primitive began
+        lo = max(bounds[j, 0] * T, tj - min(width / 2, _reach(right, stored, "before")))
+        hi = min(bounds[j + 1, 1] * T, tj + min(width / 2, _reach(left, stored, "after")))
+        bands.append(Band(tj, lo, hi, kind, delta, dist))
+        half[j, 1] = hi - tj
+        half[j + 1, 0] = tj - lo
+
+    inverse = None
+    pieces: list[np.ndarray] = []
+    sources: list[str] = []
+    methods: list[str] = []
+    for j, seg in enumerate(segs):
+        a_t, b_t = bounds[j, 0] * T, bounds[j, 1] * T
+        lo = max(0, int(np.floor((a_t - half[j, 0]) / dt + 1e-9)))
+        hi = min(n - 1, int(np.ceil((b_t + half[j, 1]) / dt - 1e-9)))
+        piece = np.zeros((n, machine.dim))
+        if seg.primitive is None:
+            if inverse is None:
+                from primlib.plant import invert
+
+                inverse = invert(machine, y_d, reference=y_d if feedback else None)
+            piece[lo : hi + 1] = inverse[lo : hi + 1]
+            pieces.append(piece)
+            sources.append(
+                f"segment {j}: unmatched, nominal-model inverse of the path "
+                f"(t = {a_t:.4g}..{b_t:.4g} s)"
+            )
+            methods.append("inverse")
+            continue
+        prim = stored[seg.primitive]
+        u_l = np.asarray(prim.signal, dtype=float)
+        n_l = u_l.shape[0]
+        T_l = float(prim.duration)
+        span_d = b_t - a_t
+        span_l = (seg.primitive_end - seg.primitive_start) * T_l
+        k = float(seg.time_scale)
+        if not np.isfinite(k) or k <= 0:
+            if span_d <= 0:
+                raise InputError(f"segments: segment {j} has zero duration and no time scale")
+            k = span_l / span_d
+        t0 = a_t - seg.primitive_start * T_l / k  # new time of the primitive's start
+        m0 = int(np.floor(t0 / dt + 1e-9))
+        offset = m0 * dt - t0
+        if offset > 0:  # rounding
+            offset = 0.0
+        rot = np.asarray(seg.rotation, dtype=float)
+        p = rot @ prim.points[0] + np.asarray(seg.translation, dtype=float) - pts[0]
+        n_out = hi - m0 + 1
+        ref = (prim.points - prim.points[0]) if feedback else None
+        on_grid = abs(k - 1.0) <= 1e-9 and (abs(offset) <= 1e-9 * dt or abs(offset + dt) <= 1e-9 * dt)
+        if on_grid:  # the matcher's k = 1 up to rounding: the stored grid is the new grid
+            k = 1.0
+            if abs(offset + dt) <= 1e-9 * dt:
+                m0 += 1
+            offset = 0.0
+        versions = list(prim.versions)
+        use_direct = (
+            method != "model"
+            and not on_grid
+            and orders is not None
+            and not feedback
+            and len(versions) + 1 >= len(orders)
+        )
+        if method == "direct" and not use_direct:
+            raise InputError(
+                f"method: 'direct' (eq. (20)) needs the primitive of segment {j} stored at "
+                f"{len(orders or (1, 2))} durations on an open-loop all-pole machine, got "
+                f"{len(versions) + 1}"
+            )
+        how = "model"
+        if n_out >= 2:
+            if use_direct:
+                target_T = T_l / k  # the whole primitive's duration at the new speed
+                vers = [(u_l, T_l / target_T)] + [
+                    (np.asarray(s, dtype=float), float(d) / target_T) for s, d in versions
+                ]
+                try:
+                    w, weights = time_scale_direct(vers, n_out, dt, orders=orders, offset=offset)
+                except InputError as exc:
+                    if method == "direct":
+                        raise
+                    notes.append(f"segment {j}: eq. (20) not used ({exc}); model-based instead")
+                    use_direct = False
+                else:
+                    full = transform(machine, w, rotation=rot, n=n_out)
+                    how = "direct"
+            if not use_direct:
+                full = transform(
+                    machine, u_l, k=k, rotation=rot, offset=offset, n=n_out, reference=ref
+                )
+                how = "identity" if on_grid and np.allclose(rot, np.eye(machine.dim)) else how
+            full = full + holding_input(machine, p)[None, :]
+            idx = np.arange(m0, hi + 1)
+            keep = idx >= lo
+            piece[idx[keep]] = full[keep]
+            if lo < m0:  # band reaches before the primitive starts: at rest there
+                piece[lo:m0] = holding_input(machine, p)[None, :]
+        pieces.append(piece)
+        methods.append(how)
+        label = prim.name or f"#{seg.primitive}"
+        what = {
+            "identity": "stored signal",
+            "model": "model-based time scale G(s/k)/G(s)",
+            "direct": f"model-free eq. (20) from {len(versions) + 1} durations",
+        }[how]
+        sources.append(
+            f"segment {j}: primitive {seg.primitive} ({label}) "
+            f"v {seg.primitive_start:.4g}..{seg.primitive_end:.4g}, k = {k:.4g}, "
+            f"rotation {np.degrees(seg.angle):.3g} deg, {what} (t = {a_t:.4g}..{b_t:.4g} s)"
+        )
+        if n_l < 2:
+            notes.append(f"segment {j}: stored signal has fewer than 2 samples")
+
+    # assemble: each sample from its segment, then blend across the bands
+    edges = bounds[:, 1] * T
+    sample_segment = np.searchsorted(edges[:-1], t + 1e-9 * dt, side="right")
+    u = np.empty((n, machine.dim))
+    for j, piece in enumerate(pieces):
+        sel = sample_segment == j
+        u[sel] = piece[sel]
+    for j, bd in enumerate(bands):
+        if bd.end - bd.start <= 0:
+            continue
+        sel = (t >= bd.start - 1e-9 * dt) & (t <= bd.end + 1e-9 * dt)
+        lam = ((t[sel] - bd.start) / (bd.end - bd.start))[:, None]
+        u[sel] = (1.0 - lam) * pieces[j][sel] + lam * pieces[j + 1][sel]
+    if any(m == "inverse" for m in methods):
+        k_un = sum(m == "inverse" for m in methods)
+        notes.append(f"{k_un} unmatched segment(s) filled with the nominal-model inverse")
+    return SpliceResult(
+        u=u,
+        bands=tuple(bands),
+        sample_segment=sample_segment,
+        sources=tuple(sources),
+        methods=tuple(methods),
+        notes=tuple(notes),
+    )
