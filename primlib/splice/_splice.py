@@ -18,11 +18,13 @@ The band is centred on the junction, ``band`` seconds wide, widened to cover the
 (2|delta| + 2 dt) in the first two cases, and confined to where both pieces are defined
 (the paper's points c_j and b_{j+1} lie on both pieces): a piece extends past its window only
 as far as its primitive goes on, so two rest-to-rest primitives meet with no band at all —
-blending a moving piece with one that has not started would only add error. Unlike eq. (23), which concatenates pieces of
-their own durations and then corrects the total length, each piece here is time-scaled to
-exactly its segment (the matcher's time scale), so the spliced input is on the machine's dt
-grid with exactly the new path's length and the paper's length error sum ΔT is zero by
-construction; the junction cases only set the band.
+blending a moving piece with one that has not started would only add error.
+
+Unlike eq. (23), which concatenates pieces of their own durations and then corrects the
+total length, each piece here is time-scaled to exactly its segment (the matcher's time
+scale), so the spliced input is on the machine's dt grid with exactly the new path's length
+and the paper's length error sum ΔT is zero by construction; the junction cases only set
+the band.
 
 An unmatched segment is filled with the nominal-model inverse of the new path
 (:func:`primlib.plant.invert`, computed once over the whole path so its state is right at
@@ -302,7 +304,8 @@ def splice(
         p = rot @ prim.points[0] + np.asarray(seg.translation, dtype=float) - pts[0]
         n_out = hi - m0 + 1
         ref = (prim.points - prim.points[0]) if feedback else None
-        on_grid = abs(k - 1.0) <= 1e-9 and (abs(offset) <= 1e-9 * dt or abs(offset + dt) <= 1e-9 * dt)
+        near = abs(offset) <= 1e-9 * dt or abs(offset + dt) <= 1e-9 * dt
+        on_grid = abs(k - 1.0) <= 1e-9 and near
         if on_grid:  # the matcher's k = 1 up to rounding: the stored grid is the new grid
             k = 1.0
             if abs(offset + dt) <= 1e-9 * dt:

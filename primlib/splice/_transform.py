@@ -117,8 +117,15 @@ def _axis_signatures(machine) -> list[str]:
         num, den = plants[a]
         scale = den[0]
         pid = fb.get(a)
-        out.append(repr((np.round(num / scale, 12).tolist(), np.round(den / scale, 12).tolist(),
-                         None if pid is None else sorted(pid.items()))))
+        out.append(
+            repr(
+                (
+                    np.round(num / scale, 12).tolist(),
+                    np.round(den / scale, 12).tolist(),
+                    None if pid is None else sorted(pid.items()),
+                )
+            )
+        )
     return out
 
 
@@ -248,8 +255,9 @@ def transform(
     return w + delta
 
 
-def time_scale(machine, u, k: float, *, offset: float = 0.0, n: int | None = None,
-               reference=None) -> np.ndarray:
+def time_scale(
+    machine, u, k: float, *, offset: float = 0.0, n: int | None = None, reference=None
+) -> np.ndarray:
     """The stored input of a primitive run k times faster (model-based, one version).
 
     For ``y_d(t) = y_l(k t)`` on an LTI axis G the input is ``u_l(k t)`` filtered by
