@@ -340,7 +340,7 @@ class Library:
         self._machines_cache[name] = (definition, machine)
         return machine
 
-    def add_machine(self, machine: Any, replace: bool = False) -> None:
+    def add_machine(self, machine: Any, replace: bool = False) -> str:
         """Store a machine (its JSON definition), so primitives can be learned on it.
 
         Adding a machine identical to the stored one of that name does nothing.
@@ -376,7 +376,7 @@ class Library:
             if rows:
                 old_dt, old_axes, old_definition = rows[0]
                 if json.loads(old_definition) == json.loads(definition):
-                    return
+                    return "unchanged"
                 if not replace:
                     raise InputError(
                         f"machine {name!r} is already in {self._label} with another definition; "
@@ -391,12 +391,14 @@ class Library:
                         f"on axes {', '.join(old_axes)}; its replacement must keep both, got "
                         f"dt = {dt:g} s on axes {', '.join(axes)}"
                     )
+                status = "replaced"
                 con.execute(
                     "UPDATE machines SET kind = $k, dt = $dt, axes = $a, definition = $d "
                     "WHERE name = $n",
                     {"k": d.get("kind", "lti"), "dt": dt, "a": axes, "d": definition, "n": name},
                 )
             else:
+                status = "added"
                 con.execute(
                     "INSERT INTO machines VALUES ($n, $k, $dt, $a, $d, $t)",
                     {
@@ -409,6 +411,7 @@ class Library:
                     },
                 )
         self._machines_cache.pop(name, None)
+        return status
 
     def machine_summaries(self) -> list[dict[str, Any]]:
         """One dict per machine: name, kind, dt, axes, primitives (count), added (UTC)."""
@@ -669,6 +672,18 @@ class Library:
 
     def _not_found(self, id: int) -> NotFoundError:
         return NotFoundError(f"no primitive with id {id} in {self._label}")
+
+    def info(self, id: int) -> PrimitiveInfo:
+        """Metadata of one primitive (NotFoundError if there is none with that id)."""
+        id = _check_id(id)
+        rows = (
+            self._db()
+            .sql(f"SELECT {_INFO_COLUMNS} FROM primitives WHERE id = $id", params={"id": id})
+            .fetchall()
+        )
+        if not rows:
+            raise self._not_found(id)
+        return self._info(rows[0])
 
     def get(self, id: int) -> Primitive:
         """One primitive with its trajectory, points and signal.
