@@ -9,9 +9,17 @@ C = c / g (see :mod:`primlib.plant._pid`) closes the loop, the control being
     y = G / (1 + G C) u + G C / (1 + G C) r
       = (b g) / (a g + b c) u + (b c) / (a g + b c) r
 
-which is one rational function per input, filtered with ``scipy.signal.lfilter`` (no Python
-loop over samples). The algebraic loop of a plant with direct feedthrough is solved exactly
-by the same rational function.
+which is one rational function per input (``closed_loop()`` returns its polynomials). The
+algebraic loop of a plant with direct feedthrough is solved exactly by the same function.
+
+Simulation filters each channel with ``scipy.signal.sosfilt`` (no Python loop over samples)
+in second-order sections built from accurately computed poles and zeros: the discrete plant
+poles are exp(p dt) exactly, the closed-loop poles the eigenvalues of the closed-loop state
+matrix, the zeros those of b and of the PID polynomials. Filtering the expanded polynomial
+with ``lfilter`` is as fast but, with 4 poles clustered near 1 (a filtered-derivative PID on
+eq. (24) at 5 ms), loses 4e-10 relative to an exact 40-digit simulation, against 4e-12 for
+the sections; the loss grows quickly as dt shrinks. Pure delays (the relative degree r)
+are applied as an exact shift of r samples.
 """
 
 from __future__ import annotations
@@ -156,6 +164,90 @@ def _validate_pid(axis: str, spec: Any) -> dict[str, float]:
     return out
 
 
+def _zoh(num: np.ndarray, den: np.ndarray, dt: float):
+    """Zero-order-hold discretisation of num / den.
+
+    ``scipy.signal.cont2discrete`` on the state-space realisation gives (A_d, B_d, C, D).
+    Its transfer-function output loses digits: the numerator (~1e-4 at 5 ms) comes out as a
+    difference of O(1) polynomials, relative error ~1e-12, which poles near 1 amplify. So
+    the poles are the exact exp(p dt), the denominator is built from them, and the
+    numerator from the Markov parameters h_0 = D, h_k = C A_d^(k-1) B_d (each accurate
+    relative to its size): b = (a * h)[:m+1].
+
+    Returns
+    -------
+    b, a : ndarray, shape (m + 1,)
+        Ascending powers of q^-1, ``a[0] == 1``.
+    ss : tuple (A_d, B_d, C, D)
+    poles : ndarray, shape (m,)
+    """
+    order = len(den) - 1
+    if order == 0:
+        ss = (np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[num[-1] / den[0]]]))
+        return np.array([num[-1] / den[0]]), np.array([1.0]), ss, np.zeros(0)
+    A, B, C, D, _ = signal.cont2discrete(signal.tf2ss(num, den), dt, method="zoh")
+    poles = np.exp(np.roots(den) * dt)
+    a = np.real(np.poly(poles))
+    h = np.empty(order + 1)
+    h[0] = D[0, 0] if len(num) == len(den) else 0.0  # exact zero when strictly proper
+    x = B[:, 0]
+    for k in range(1, order + 1):
+        h[k] = C[0] @ x
+        x = A @ x
+    b = np.convolve(a, h)[: order + 1]
+    return b, a, (A, B, C, D), poles
+
+
+def _closed_loop_poles(ss, c: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Eigenvalues of the closed-loop state matrix (plant ZOH state space, PID state space,
+    algebraic loop through D and the PID feedthrough solved). Far better conditioned than
+    the roots of the closed-loop polynomial when the poles cluster near 1."""
+    A, B, C, D = ss
+    if len(g) > 1:
+        Ac, Bc, Cc, Dc = signal.tf2ss(c, g)
+    else:
+        Ac, Bc, Cc, Dc = np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[c[0]]])
+    s = 1.0 / (1.0 + D[0, 0] * Dc[0, 0])
+    # y = s (C x + D Cc xc) + ..., e = r - y, v = u + Cc xc + Dc e
+    e_x, e_c = -s * C, -s * (D @ Cc)
+    v_x, v_c = Dc @ e_x, Cc + Dc @ e_c
+    Acl = np.block([[A + B @ v_x, B @ v_c], [Bc @ e_x, Ac + Bc @ e_c]])
+    return np.linalg.eigvals(Acl) if Acl.size else np.zeros(0)
+
+
+def _plant_zeros(b: np.ndarray, extra: np.ndarray) -> np.ndarray:
+    b_r = np.trim_zeros(np.trim_zeros(b, "f"), "b")
+    zeros = np.roots(b_r) if len(b_r) > 1 else np.zeros(0)
+    return np.concatenate([zeros, extra])
+
+
+def _sos(num: np.ndarray, zeros: np.ndarray, poles: np.ndarray) -> tuple[np.ndarray, int]:
+    """Second-order sections of num / den from accurate zeros and poles, and the delay.
+
+    In lfilter's convention (ascending powers of q^-1, den[0] = 1),
+    ``num = q^-r k prod(1 - z_i q^-1)`` with k the first non-zero coefficient at index r;
+    ``zpk2sos`` cannot hold the pure delay q^-r (it pads zeros at the origin, which are
+    factors of 1 here), so the delay is returned separately and applied by shifting.
+    """
+    nz = np.flatnonzero(num)
+    if len(nz) == 0:
+        return np.array([[0.0, 0.0, 0.0, 1.0, 0.0, 0.0]]), 0
+    r = int(nz[0])
+    if len(zeros) == 0 and len(poles) == 0:
+        return np.array([[num[r], 0.0, 0.0, 1.0, 0.0, 0.0]]), r
+    return signal.zpk2sos(zeros, poles, num[r]), r
+
+
+def _apply(section: tuple[np.ndarray, int], x: np.ndarray) -> np.ndarray:
+    sos, r = section
+    y = signal.sosfilt(sos, x)
+    if r == 0:
+        return y
+    out = np.zeros_like(y)
+    out[r:] = y[: len(y) - r]
+    return out
+
+
 def _pad(p: np.ndarray, n: int) -> np.ndarray:
     out = np.zeros(n)
     out[: len(p)] = p
@@ -270,22 +362,16 @@ class Machine:
         self._discrete = []
         self._controllers = []
         self._loops = []
+        self._sos = []
         for axis in self._axes:
             num, den = self._plants[axis]
-            b, a, _ = signal.cont2discrete((num, den), self._dt, method="zoh")
-            b = np.asarray(b, dtype=float).ravel()
-            a = np.asarray(a, dtype=float).ravel()
-            n = max(len(a), len(b))
-            b, a = _pad(b, n), _pad(a, n)
-            # ZOH: the first Markov parameter is the continuous feedthrough exactly;
-            # cont2discrete returns it up to rounding, which would blur the relative degree
-            b[0] = num[0] / den[0] if len(num) == len(den) else 0.0
-            b, a = b / a[0], a / a[0]
+            b, a, ss, poles = _zoh(num, den, self._dt)
             self._discrete.append((b, a))
             pid = None if self._feedback is None else self._feedback.get(axis)
             if pid is None:
                 self._controllers.append(None)
                 self._loops.append((b, np.zeros(1), a))
+                self._sos.append((_sos(b, _plant_zeros(b, np.zeros(0)), poles), None))
                 continue
             c, g = pid_polynomials(pid["kp"], pid["ki"], pid["kd"], pid["tf"], self._dt)
             self._controllers.append((c, g))
@@ -300,7 +386,7 @@ class Machine:
             m = len(den_cl)
             num_u, num_r = _pad(num_u, m) / den_cl[0], _pad(num_r, m) / den_cl[0]
             den_cl = den_cl / den_cl[0]
-            poles = np.roots(den_cl)
+            poles = _closed_loop_poles(ss, c, g)
             if poles.size and np.max(np.abs(poles)) >= 1.0 - _UNIT_TOL:
                 worst = poles[np.argmax(np.abs(poles))]
                 raise InputError(
@@ -308,6 +394,14 @@ class Machine:
                     f"got a discrete pole at {worst:.6g} (|z| = {abs(worst):.6g})"
                 )
             self._loops.append((num_u, num_r, den_cl))
+            g_zeros = np.roots(g)
+            c_zeros = np.roots(np.trim_zeros(c, "b")) if np.any(c) else np.zeros(0)
+            self._sos.append(
+                (
+                    _sos(num_u, _plant_zeros(b, g_zeros), poles),
+                    _sos(num_r, _plant_zeros(b, c_zeros), poles) if np.any(c) else None,
+                )
+            )
 
     # --------------------------------------------------------------------- properties
     @property
@@ -403,24 +497,24 @@ class Machine:
         """
         u = self._check_signal(u, "u")
         y = np.empty_like(u)
-        for i, (num_u, _, den) in enumerate(self._loops):
-            y[:, i] = signal.lfilter(num_u, den, u[:, i])
+        for i, (sos_u, _) in enumerate(self._sos):
+            y[:, i] = _apply(sos_u, u[:, i])
         if reference is not None:
             r = self._check_signal(reference, "reference")
             if r.shape != u.shape:
                 raise InputError(f"reference: expected the shape of u {u.shape}, got {r.shape}")
-            for i, (_, num_r, den) in enumerate(self._loops):
-                if self._controllers[i] is not None:
-                    y[:, i] += signal.lfilter(num_r, den, r[:, i])
+            for i, (_, sos_r) in enumerate(self._sos):
+                if sos_r is not None:
+                    y[:, i] += _apply(sos_r, r[:, i])
         return y
 
     def reference_response(self, reference: Any) -> np.ndarray:
         """Output for u = 0 and the given PID reference, shape (n, d); zero on open-loop axes."""
         r = self._check_signal(reference, "reference")
         y = np.zeros_like(r)
-        for i, (_, num_r, den) in enumerate(self._loops):
-            if self._controllers[i] is not None:
-                y[:, i] = signal.lfilter(num_r, den, r[:, i])
+        for i, (_, sos_r) in enumerate(self._sos):
+            if sos_r is not None:
+                y[:, i] = _apply(sos_r, r[:, i])
         return y
 
     def impulse_response(self, n: int) -> np.ndarray:
