@@ -340,6 +340,7 @@ def test_evaluation_errors():
     [
         (dict(knots=[0, 0, 0, 0.5, 1, 1]), r"knots: expected shape \(7,\) for 4 control points"),
         (dict(knots=[0, 0, 0.1, 0.5, 1, 1, 1]), r"knots: expected a clamped vector"),
+        (dict(knots=[0, 0, 0, 1, 1, 1, 1]), r"knots: expected a clamped vector \(exactly 3"),
         (dict(knots=[0, 0, 0, 0.7, 0.5, 1, 1]), r"knots: expected finite non-decreasing"),
         (dict(weights=[1, 1, 0, 1]), r"weights: expected positive finite values"),
         (dict(weights=[1, 1, 1]), r"weights: expected shape \(4,\), got \(3,\)"),

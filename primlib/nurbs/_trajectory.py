@@ -276,9 +276,15 @@ class Trajectory:
             )
         if not np.isfinite(kv).all() or np.any(np.diff(kv) < 0):
             raise InputError("knots: expected finite non-decreasing values, got otherwise")
-        if kv[0] == kv[-1] or np.any(kv[: p + 1] != kv[0]) or np.any(kv[-p - 1 :] != kv[-1]):
+        if (
+            kv[0] == kv[-1]
+            or np.any(kv[: p + 1] != kv[0])
+            or np.any(kv[-p - 1 :] != kv[-1])
+            or kv[p + 1] == kv[0]
+            or kv[-p - 2] == kv[-1]
+        ):
             raise InputError(
-                f"knots: expected a clamped vector ({p + 1} equal knots at each end) "
+                f"knots: expected a clamped vector (exactly {p + 1} equal knots at each end) "
                 f"spanning a non-empty interval, got {kv[: p + 1].tolist()} ... "
                 f"{kv[-p - 1 :].tolist()}"
             )
@@ -409,19 +415,24 @@ class Trajectory:
         return e
 
     # ------------------------------------------------------------------ evaluation
-    def _spline(self, nu: int) -> BSpline:
-        key = ("spline", nu)
+    def _spline(self) -> BSpline:
+        key = "spline"
         spl = self._cache.get(key)
         if spl is None:
-            if nu == 0:
-                c = self.ctrlpts
-                if self.rational:  # homogeneous coordinates (w P, w)
-                    c = np.column_stack([self.ctrlpts * self.weights[:, None], self.weights])
-                spl = BSpline(self.knots, c, self.degree, extrapolate=True)
-            else:
-                spl = self._spline(0).derivative(nu)
+            c = self.ctrlpts
+            if self.rational:  # homogeneous coordinates (w P, w)
+                c = np.column_stack([self.ctrlpts * self.weights[:, None], self.weights])
+            spl = BSpline(self.knots, c, self.degree, extrapolate=True)
             self._cache[key] = spl
         return spl
+
+    def _eval(self, v: np.ndarray, nu: int) -> np.ndarray:
+        """nu-th v-derivative of the (homogeneous) spline; de Boor per span, so repeated
+        interior knots are fine (``BSpline.derivative`` would refuse them)."""
+        spl = self._spline()
+        if nu > self.degree:
+            return np.zeros(v.shape + (spl.c.shape[1],))
+        return spl(v, nu=nu)
 
     def _params(self, v: Any, name: str = "v") -> np.ndarray:
         try:
@@ -440,9 +451,19 @@ class Trajectory:
     def _derivatives(self, v: np.ndarray, order: int) -> list[np.ndarray]:
         """[C, C', C''][: order + 1] with respect to v at parameters v (k,)."""
         d = self.dim
-        raw = [self._spline(k)(v) for k in range(order + 1)]
+        raw = [self._eval(v, k) for k in range(order + 1)]
         if not self.rational:
-            return raw
+            out = raw
+        else:
+            out = self._quotient(raw, d, order)
+        # A clamped curve starts and ends exactly on its end control points; say so exactly
+        # rather than through a basis that sums to 1 only up to rounding.
+        out[0][v == 0.0] = self.ctrlpts[0]
+        out[0][v == 1.0] = self.ctrlpts[-1]
+        return out
+
+    @staticmethod
+    def _quotient(raw: list[np.ndarray], d: int, order: int) -> list[np.ndarray]:
         # Quotient rule on C = A / W (homogeneous A = sum N w P, W = sum N w):
         # C' = (A' - W' C) / W, C'' = (A'' - 2 W' C' - W'' C) / W  (The NURBS Book, eq. 4.8)
         A = [r[..., :d] for r in raw]
