@@ -35,8 +35,8 @@ input mixes them through ``P_j / P_i``: ``u_d,i = Σ_j R_ij P_i^{-1} P_j u_j`` �
 same way (target ``R y_l``, correction by the inverse); between identical axes (same plant,
 same PID) the ratio is 1 and the input is exactly ``R u``, no model involved. Translation
 adds the holding input of eqs. (16)-(18): the input that keeps an axis at offset p_i in
-steady state, ``p_i (1 − T_r(1)) / T_u(1)`` — zero for integrating axes and for loops with an
-integral action, ``p_i / DC gain`` otherwise. The paper's settling-time construction of
+steady state — zero for integrating axes and for loops with an integral action,
+``p_i / P_i(0)`` (offset over DC gain) otherwise. The paper's settling-time construction of
 u_I (its figure 3) is this DC input once transients have died out.
 
 Model-free time scale (eq. (20), Xu's direct learning). When the same primitive is stored
@@ -153,9 +153,9 @@ def holding_input(machine, offset) -> np.ndarray:
     Returns
     -------
     u : array, shape (d,)
-        ``p_i (1 - T_r(1)) / T_u(1)`` from the discrete closed loop at z = 1: zero on an
-        integrating axis (the position stays where the motion left it) and under a PID with
-        integral action; ``p_i / DC gain`` on an open-loop stable axis.
+        Zero on an integrating axis (the position stays where the motion left it) and under
+        a PID with integral action; otherwise ``p_i / P_i(0)`` (at rest on the reference the
+        PID's error is zero, so the feedforward alone holds the offset).
     """
     p = np.asarray(offset, dtype=float).reshape(-1)
     if p.shape != (machine.dim,) or not np.all(np.isfinite(p)):
@@ -163,13 +163,16 @@ def holding_input(machine, offset) -> np.ndarray:
             f"translation: expected {machine.dim} finite numbers, got shape {np.shape(offset)}"
         )
     out = np.zeros(machine.dim)
-    for i, (num_u, num_r, den) in enumerate(machine.closed_loop()):
-        den1 = float(np.sum(den))
-        gu = float(np.sum(num_u))
-        if abs(den1) <= 1e-12 * float(np.sum(np.abs(den))):
-            continue  # integrator in the loop: holding needs no input
-        tr = float(np.sum(num_r)) / den1
-        out[i] = p[i] * (1.0 - tr) * den1 / gu
+    controllers = machine.controllers()
+    for i, (b, a) in enumerate(machine.discrete()):
+        a1, b1 = float(np.sum(a)), float(np.sum(b))
+        if abs(a1) <= 1e-12 * float(np.sum(np.abs(a))):
+            continue  # integrating axis: the position stays where the motion left it
+        cg = controllers[i]
+        if cg is not None and abs(float(np.sum(cg[1]))) <= 1e-12 * float(np.sum(np.abs(cg[1]))):
+            continue  # the PID's integral action holds the offset (error 0 at rest)
+        # at rest on the reference the PID's error is 0, so the feedforward alone holds p
+        out[i] = p[i] * a1 / b1
     return out
 
 
