@@ -72,9 +72,11 @@ def lsq_fit(v: np.ndarray, points: np.ndarray, m: int, p: int) -> Fit | None:
     for a in range(p + 1):
         for b in range(a, p + 1):
             ab[p - (b - a)] += np.bincount(first + b, basis[:, a] * basis[:, b], minlength=m)
-    rhs = np.zeros((m, points.shape[1]))
-    for a in range(p + 1):
-        np.add.at(rhs, first + a, basis[:, a : a + 1] * points)
+    rhs = np.empty((m, points.shape[1]))  # B^T P, one bincount per (basis, axis)
+    for k in range(points.shape[1]):
+        rhs[:, k] = sum(
+            np.bincount(first + a, basis[:, a] * points[:, k], minlength=m) for a in range(p + 1)
+        )
     try:
         ctrl = solveh_banded(ab, rhs, check_finite=False)
     except LinAlgError:
