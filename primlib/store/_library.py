@@ -30,6 +30,7 @@ from primlib._errors import (
     NotFoundError,
     PrimlibError,
 )
+from primlib.io._csv import MIN_ROWS
 from primlib.store._schema import APPLICATION, SCHEMA_VERSION, migrate, utcnow
 from primlib.store._types import Bank, Primitive, PrimitiveInfo
 
@@ -471,7 +472,7 @@ class Library:
         InputError
             Wrong dimension, dt or shape, NaN or inf; nothing is written.
         """
-        return self.add_many([(path, u, name, source)], machine)[0]
+        return self._insert([(path, u, name, source)], machine, single=True)[0]
 
     def add_many(self, items: Sequence[Sequence[Any]], machine: str) -> list[int]:
         """Store many primitives in ONE transaction: all of them, or (on any error) none.
@@ -498,6 +499,9 @@ class Library:
         InputError
             Any bad item (the message names it); nothing is written.
         """
+        return self._insert(items, machine, single=False)
+
+    def _insert(self, items: Sequence[Sequence[Any]], machine: str, single: bool) -> list[int]:
         con = self._writable()
         dt, axes, _ = self._machine_row(machine)
         d = len(axes)
@@ -508,7 +512,10 @@ class Library:
         k = len(items)
         if k == 0:
             return []
-        checked = [self._check_item(i, item, machine, dt, axes) for i, item in enumerate(items)]
+        checked = [
+            self._check_item(None if single else i, item, machine, dt, axes)
+            for i, item in enumerate(items)
+        ]
 
         n = np.array([c["n"] for c in checked], dtype=np.int64)
         m = np.array([len(c["weights"]) for c in checked], dtype=np.int64)
@@ -524,43 +531,46 @@ class Library:
         weights = np.concatenate([c["weights"] for c in checked])
         added = utcnow()
 
-        with self._transaction():
-            ids = np.array(
-                [
-                    r[0]
-                    for r in con.sql(f"SELECT nextval('primitive_ids') FROM range({k})").fetchall()
-                ],
-                dtype=np.int64,
-            )
-            table = pa.table(
-                {
-                    "id": pa.array(ids),
-                    "machine": pa.array([machine] * k, pa.string()),
-                    "name": pa.array([c["name"] for c in checked], pa.string()),
-                    "source": pa.array([c["source"] for c in checked], pa.string()),
-                    "added": pa.array([added] * k, pa.timestamp("us")),
-                    "duration": pa.array([c["duration"] for c in checked], pa.float64()),
-                    "dt": pa.array(np.full(k, dt)),
-                    "dim": pa.array(np.full(k, d, dtype=np.int32)),
-                    "n_samples": pa.array(n.astype(np.int32)),
-                    "degree": pa.array(np.array([c["degree"] for c in checked], dtype=np.int32)),
-                    "knots": _list_array(knots, knot_offsets),
-                    "ctrlpts": _list_array(ctrlpts, ctrl_offsets),
-                    "weights": _list_array(weights, weight_offsets),
-                    "points": _list_array(points, sample_offsets),
-                    "signal": _list_array(signals, sample_offsets),
-                }
-            )
-            con.register("_primlib_batch", table)
-            try:
+        registered = False
+        try:
+            with self._transaction():
+                seq = con.sql(f"SELECT nextval('primitive_ids') FROM range({k})").fetchall()
+                ids = np.array([r[0] for r in seq], dtype=np.int64)
+                table = pa.table(
+                    {
+                        "id": pa.array(ids),
+                        "machine": pa.array([machine] * k, pa.string()),
+                        "name": pa.array([c["name"] for c in checked], pa.string()),
+                        "source": pa.array([c["source"] for c in checked], pa.string()),
+                        "added": pa.array([added] * k, pa.timestamp("us")),
+                        "duration": pa.array([c["duration"] for c in checked], pa.float64()),
+                        "dt": pa.array(np.full(k, dt)),
+                        "dim": pa.array(np.full(k, d, dtype=np.int32)),
+                        "n_samples": pa.array(n.astype(np.int32)),
+                        "degree": pa.array(
+                            np.array([c["degree"] for c in checked], dtype=np.int32)
+                        ),
+                        "knots": _list_array(knots, knot_offsets),
+                        "ctrlpts": _list_array(ctrlpts, ctrl_offsets),
+                        "weights": _list_array(weights, weight_offsets),
+                        "points": _list_array(points, sample_offsets),
+                        "signal": _list_array(signals, sample_offsets),
+                    }
+                )
+                con.register("_primlib_batch", table)
+                registered = True
                 cols = ", ".join(_INSERT_COLUMNS)
                 con.execute(f"INSERT INTO primitives ({cols}) SELECT {cols} FROM _primlib_batch")
-            finally:
+        finally:
+            # after the rollback: an aborted transaction refuses even this
+            if registered:
                 con.unregister("_primlib_batch")
         return ids.tolist()
 
     @staticmethod
-    def _check_item(i: int, item: Any, machine: str, dt: float, axes: list[str]) -> dict[str, Any]:
+    def _check_item(
+        i: int | None, item: Any, machine: str, dt: float, axes: list[str]
+    ) -> dict[str, Any]:
         d = len(axes)
         if (
             isinstance(item, (str, bytes))
@@ -571,7 +581,10 @@ class Library:
         path, u = item[0], item[1]
         name = item[2] if len(item) > 2 else None
         source = item[3] if len(item) > 3 else None
-        label = f"item {i}" if name is None else f"item {i} ({name!r})"
+        # add() names the primitive, add_many() the item too: "item 2 ('glyph-c'): ..."
+        label = "primitive" if i is None else f"item {i}"
+        if isinstance(name, str):
+            label = f"primitive {name!r}" if i is None else f"{label} ({name!r})"
         for what, value in (("name", name), ("source", source)):
             if value is not None and not isinstance(value, str):
                 raise InputError(f"{label}: expected {what} to be a string, got {value!r}")
@@ -596,6 +609,11 @@ class Library:
                 f"{machine!r}'s steps (dt = {dt:g} s), got T = {duration:.9g} s"
             )
         n = int(round(steps)) + 1
+        if n < MIN_ROWS:
+            raise InputError(
+                f"{label}: expected at least {MIN_ROWS} samples on machine {machine!r}'s grid "
+                f"(T >= {MIN_ROWS - 1} dt = {(MIN_ROWS - 1) * dt:g} s), got {n}"
+            )
         try:
             u = np.asarray(u, dtype=np.float64)
         except (TypeError, ValueError):
