@@ -379,3 +379,46 @@ def test_from_definition_maps_knots_onto_unit_interval():
     np.testing.assert_array_equal(a.knots, b.knots)
     v = np.linspace(0, 1, 9)
     np.testing.assert_array_equal(a.at(v), b.at(v))
+
+
+def test_pickle_and_copy_round_trip():
+    import copy
+    import pickle
+
+    tr = Trajectory.from_samples(_lissajous(), 0.01)
+    for back in (pickle.loads(pickle.dumps(tr)), copy.deepcopy(tr), copy.copy(tr)):
+        for key, value in tr.definition().items():
+            np.testing.assert_array_equal(back.definition()[key], value)
+        assert back.dt == tr.dt and back.fit_error == tr.fit_error
+        assert not back.ctrlpts.flags.writeable
+
+
+@pytest.mark.parametrize(
+    "make", [lambda: Trajectory.from_samples(_lissajous(), 0.01), _rational_cubic]
+)
+def test_transformed_and_with_duration_are_exact(make):
+    tr = make()
+    rng = np.random.default_rng(1)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    b = np.array([5.0, -7.0, 2.0])
+    moved = tr.transformed(q, b)
+    v = np.linspace(0, 1, 29)
+    scale = np.abs(tr.ctrlpts).max() + 7
+    np.testing.assert_allclose(moved.at(v), tr.at(v) @ q.T + b, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(
+        moved.velocity(v), tr.velocity(v) @ q.T, rtol=1e-12, atol=1e-12 * scale
+    )
+    slow = tr.with_duration(2 * tr.duration)
+    np.testing.assert_array_equal(slow.at(v), tr.at(v))
+    np.testing.assert_allclose(slow.velocity(v), tr.velocity(v) / 2, rtol=1e-15)
+    np.testing.assert_allclose(slow.acceleration(v), tr.acceleration(v) / 4, rtol=1e-15)
+    with pytest.raises(
+        InputError,
+        match=r"rotation: expected a finite \(3, 3\) matrix, got "
+        r"\(2, 2\)",
+    ):
+        tr.transformed(np.eye(2))
+    with pytest.raises(InputError, match=r"translation: expected a finite \(3,\) vector"):
+        tr.transformed(None, [1.0, np.nan, 0.0])
+    with pytest.raises(InputError, match=r"duration: expected a positive finite number"):
+        tr.with_duration(-1)

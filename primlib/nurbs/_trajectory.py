@@ -153,6 +153,21 @@ class Trajectory:
     def __delattr__(self, name: str) -> None:
         raise AttributeError(f"Trajectory is immutable: cannot delete {name!r}")
 
+    def __reduce__(self):
+        # __setattr__ is closed, so pickle and copy rebuild through the constructor
+        return (
+            Trajectory,
+            (
+                self.degree,
+                self.knots,
+                self.ctrlpts,
+                self.weights,
+                self.duration,
+                self.dt,
+                self.fit_error,
+            ),
+        )
+
     def __repr__(self) -> str:
         kind = "rational" if self.rational else "non-rational"
         return (
@@ -574,3 +589,44 @@ class Trajectory:
         else:
             w, pts = np.ones(m), sub
         return Trajectory(p, sub_kv, pts, w, (b - a) * self.duration)
+
+    # ------------------------------------------------------------------ exact transforms
+    def with_duration(self, duration: float) -> Trajectory:
+        """The same curve traversed in ``duration`` seconds (velocities scale by T / duration).
+
+        Raises
+        ------
+        InputError
+            If duration is not a positive finite number.
+        """
+        T = _positive(duration, "duration", " of seconds")
+        return Trajectory(self.degree, self.knots, self.ctrlpts, self.weights, T)
+
+    def transformed(self, rotation: Any = None, translation: Any = None) -> Trajectory:
+        """The path moved rigidly (or by any linear map): C'(v) = R C(v) + b, exactly.
+
+        NURBS are invariant under affine maps: transforming the control points transforms the
+        curve (The NURBS Book, sec. 4.2), so the result is exact and keeps the weights.
+
+        Parameters
+        ----------
+        rotation : array, shape (d, d), optional
+            R (identity when omitted); any matrix is accepted, a rotation keeps shapes.
+        translation : array, shape (d,), optional
+            b (zero when omitted).
+
+        Raises
+        ------
+        InputError
+            If R is not (d, d) or b not (d,), or either is not finite.
+        """
+        d = self.dim
+        R = np.eye(d) if rotation is None else np.asarray(rotation, dtype=np.float64)
+        b = np.zeros(d) if translation is None else np.asarray(translation, dtype=np.float64)
+        if R.shape != (d, d) or not np.isfinite(R).all():
+            raise InputError(f"rotation: expected a finite ({d}, {d}) matrix, got {R.shape}")
+        if b.shape != (d,) or not np.isfinite(b).all():
+            raise InputError(f"translation: expected a finite ({d},) vector, got {b.shape}")
+        return Trajectory(
+            self.degree, self.knots, self.ctrlpts @ R.T + b, self.weights, self.duration, self.dt
+        )
