@@ -1,0 +1,520 @@
+"""Sub-curve search: the best stored piece for one piece of the new path.
+
+A *query* is the piece [a, b] (normalised time) of the new path; a *candidate* is a piece
+[x0, x1] (fractional sample indices) of a stored primitive. Both are compared sampled at
+uniform time — K points each, ``rmsd`` of eq. (1) in ``_kabsch`` — so a candidate of
+duration (x1 − x0)·dt against a query of duration (b − a)·T has time scale
+k = (x1 − x0)·dt / ((b − a)·T), within ``time_scale`` (default 0.25–4).
+
+Three searchers propose *seeds* (candidates ranked by a grid RMSD); all three hand them to
+the same continuous refinement (:func:`refine`) and the same dense confirmation, so they
+differ only in how fast they find the seeds:
+
+``GridSearch`` (the reference, exhaustive on a documented grid)
+    Query sampled at K = ``grid_points`` (16) uniform-time points. Every primitive; every
+    duration D = k·(query duration) for k on a geometric grid over ``time_scale`` with ratio
+    at most ``scale_ratio`` (1.1, so 30 scales over 0.25–4); for each D the primitive is
+    resampled at the stride h = D/(K − 1) and every start m·h (m = 0, 1, ...) is a
+    candidate whose K points are K consecutive resampled points. The cross-covariances of
+    the centred query with every window come from one product over a strided window view,
+    the window second moments from cumulative sums, and the RMSD of all windows at once
+    from ``rmsd_from_moments`` (QCP, no rotation formed).
+``LoopSearch``
+    The same candidates, one ``kabsch`` call each: the plain per-candidate loop the
+    benchmark times against and the tests compare with.
+``IndexSearch`` (the default, fast)
+    A rigid motion and a change of time scale leave the arc-length shape of a piece
+    unchanged, so the library is indexed once by resampling every primitive at uniform arc
+    length (a pyramid of steps Δ₀·2ʲ). A query of arc length ℓ is resampled at the level
+    whose step gives 16–31 points; every window of that level is a candidate whose
+    duration follows from the arc length (no duration grid: the time-scale dimension
+    collapses), filtered to the time-scale range. Windows are scored exactly (Kabsch RMSD
+    of the arc samples) best-first in order of a provable lower bound, the radius-of-
+    gyration difference |g(P) − g(Q)| ≤ rmsd (Cauchy–Schwarz on eq. (2)), until no unscored
+    window's bound is below the m-th best score: the top seeds are exactly those of scoring
+    every window. The benchmark checks that the segmentation equals ``GridSearch``'s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from primlib.match._bank import BankArrays, cubic_at, linear_at
+from primlib.match._kabsch import kabsch, rmsd_from_moments, rotation_for
+
+__all__ = [
+    "SearchOptions",
+    "Candidate",
+    "PathPiece",
+    "GridSearch",
+    "LoopSearch",
+    "IndexSearch",
+    "ArcIndex",
+    "refine",
+    "piece_rmsd",
+]
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """Knobs of the search, all documented in the module notes.
+
+    Attributes
+    ----------
+    mode : {"full", "z", "none"}
+        Rotation family.
+    time_scale : (float, float)
+        Allowed primitive duration / segment duration.
+    grid_points : int
+        K of the reference grid.
+    scale_ratio : float
+        Largest ratio between neighbouring time scales of the reference grid.
+    seeds : int
+        Seeds refined per query (distinct basins, best first).
+    refine_points : int
+        Uniform-time points used by the continuous refinement.
+    confirm_max : int
+        Cap on the confirmation points (one per path sample in the segment, at least 16).
+    """
+
+    mode: str = "full"
+    time_scale: tuple[float, float] = (0.25, 4.0)
+    grid_points: int = 16
+    scale_ratio: float = 1.1
+    seeds: int = 4
+    refine_points: int = 64
+    confirm_max: int = 512
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A piece [x0, x1] (fractional sample indices) of bank primitive ``prim`` (row index)."""
+
+    prim: int
+    x0: float
+    x1: float
+    score: float
+
+
+@dataclass(frozen=True)
+class PathPiece:
+    """The new path as uniform-time samples; pieces are addressed by normalised time."""
+
+    points: np.ndarray
+    duration: float
+
+    @property
+    def n(self) -> int:
+        return self.points.shape[0]
+
+    def at(self, v: np.ndarray) -> np.ndarray:
+        n = self.n
+        return cubic_at(self.points, 0, n, np.asarray(v, dtype=float) * (n - 1))
+
+    def confirm_points(self, a: float, b: float, cap: int) -> int:
+        """Points of the dense check: one per path sample in [a, b], 16 to ``cap``."""
+        return int(np.clip(round((b - a) * (self.n - 1)) + 1, 16, cap))
+
+
+def _prim_at(bank: BankArrays, i: int, x: np.ndarray) -> np.ndarray:
+    return cubic_at(bank.points, bank.offsets[i], bank.offsets[i + 1] - bank.offsets[i], x)
+
+
+def piece_rmsd(
+    bank: BankArrays, cand: Candidate, path: PathPiece, a: float, b: float, k: int, mode: str
+):
+    """Kabsch superposition of the candidate onto the path piece, both at k uniform times."""
+    p = _prim_at(bank, cand.prim, np.linspace(cand.x0, cand.x1, k))
+    q = path.at(np.linspace(a, b, k))
+    return kabsch(p, q, mode=mode)
+
+
+def refine(
+    bank: BankArrays,
+    cand: Candidate,
+    path: PathPiece,
+    a: float,
+    b: float,
+    opts: SearchOptions,
+    target: float = 0.0,
+) -> Candidate:
+    """Continuous (start, duration) refinement of a seed, bounded to the time-scale range.
+
+    Variable projection with damped Gauss–Newton: the residual r_j = q̃_j − R p̃(x0 + D s_j)
+    (s_j uniform in [0, 1], tildes = centred) is linearised in (x0, D) with the Kabsch R of
+    the current iterate held fixed — by the envelope theorem this is the gradient of the
+    reduced cost min_R Σ|r_j|² — and the derivative of the stored curve comes from its cubic
+    interpolant. Steps are clipped to 0 ≤ x0, x0 + D ≤ n − 1 and the time-scale range, and
+    accepted only when the cost decreases (Levenberg damping otherwise). Stops at
+    convergence, or as soon as the RMSD at the refinement points is below ``target``.
+    """
+    off = int(bank.offsets[cand.prim])
+    n_p = int(bank.offsets[cand.prim + 1]) - off
+    dq = (b - a) * path.duration / bank.dt
+    lo = max(opts.time_scale[0] * dq, 1e-6)
+    hi = min(opts.time_scale[1] * dq, n_p - 1.0)
+    if hi < lo:
+        return cand
+    k = opts.refine_points
+    q = path.at(np.linspace(a, b, k))
+    qc = q - q.mean(axis=0)
+    s = np.linspace(0.0, 1.0, k)
+
+    def clip(z0: float, dur: float) -> tuple[float, float]:
+        dur = min(max(dur, lo), hi)
+        return min(max(z0, 0.0), n_p - 1.0 - dur), dur
+
+    def evaluate(z0: float, dur: float):
+        p, dp = cubic_at(bank.points, off, n_p, z0 + dur * s, derivative=True)
+        pc = p - p.mean(axis=0)
+        r = rotation_for(pc.T @ qc, opts.mode)
+        res = qc - pc @ r.T
+        return float(np.sum(res * res)), res, dp @ r.T
+
+    x0, dur = clip(cand.x0, cand.x1 - cand.x0)
+    cost, res, dpr = evaluate(x0, dur)
+    stop = target * target * k
+    lam = 0.0
+    for _ in range(40):
+        if cost < stop:
+            break
+        jx = dpr - dpr.mean(axis=0)  # ∂(R p̃_j)/∂x0
+        sd = dpr * s[:, None]
+        jd = sd - sd.mean(axis=0)  # ∂(R p̃_j)/∂D
+        jac = np.stack([jx.ravel(), jd.ravel()], axis=1)
+        jtj = jac.T @ jac
+        g = jac.T @ res.ravel()
+        improved = False
+        for _ in range(8):
+            try:
+                step = np.linalg.solve(jtj + lam * np.diag(np.diag(jtj) + 1e-12), g)
+            except np.linalg.LinAlgError:
+                break
+            nx, nd = clip(x0 + step[0], dur + step[1])
+            ncost, nres, ndpr = evaluate(nx, nd)
+            if ncost < cost:
+                moved = abs(nx - x0) + abs(nd - dur)
+                gain = cost - ncost
+                x0, dur, cost, res, dpr = nx, nd, ncost, nres, ndpr
+                lam = lam / 10.0 if lam > 1e-6 else 0.0
+                improved = True
+                break
+            lam = max(lam * 10.0, 1e-4)
+        if not improved or moved < 1e-6 or gain < 1e-12 * cost:
+            break
+    return Candidate(cand.prim, x0, x0 + dur, cand.score)
+
+
+def _scale_grid(lo: float, hi: float, ratio: float) -> np.ndarray:
+    n = 1 + max(1, math.ceil(math.log(hi / lo) / math.log(ratio) - 1e-9)) if hi > lo else 1
+    return np.geomspace(lo, hi, n) if n > 1 else np.array([lo])
+
+
+def _suppress(cands: list[Candidate], m: int) -> list[Candidate]:
+    """Greedy non-maximum suppression: one seed per basin (overlap > half the shorter)."""
+    out: list[Candidate] = []
+    for c in sorted(cands, key=lambda c: c.score):
+        same = False
+        for o in out:
+            if o.prim == c.prim:
+                ov = min(o.x1, c.x1) - max(o.x0, c.x0)
+                if ov > 0.5 * min(o.x1 - o.x0, c.x1 - c.x0):
+                    same = True
+                    break
+        if not same:
+            out.append(c)
+            if len(out) == m:
+                break
+    return out
+
+
+def _window_moments(cs: np.ndarray, cs2: np.ndarray, starts: np.ndarray, k: int, per_axis: bool):
+    """Σ|p − p̄|² of the windows [m, m + k) from cumulative sums (per axis if asked)."""
+    sx = cs[starts + k] - cs[starts]
+    sxx = cs2[starts + k] - cs2[starts]
+    sp = sxx - sx * sx / k
+    return sp if per_axis else sp.sum(axis=1)
+
+
+def _cumsums(x: np.ndarray):
+    cs = np.zeros((x.shape[0] + 1, x.shape[1]))
+    np.cumsum(x, axis=0, out=cs[1:])
+    cs2 = np.zeros_like(cs)
+    np.cumsum(x * x, axis=0, out=cs2[1:])
+    return cs, cs2
+
+
+@dataclass
+class _Stats:
+    windows: int = 0
+    scored: int = 0
+    queries: int = 0
+
+
+@dataclass
+class GridSearch:
+    """Exhaustive search on the documented (start, time scale) grid, vectorised."""
+
+    bank: BankArrays
+    opts: SearchOptions
+    stats: _Stats = field(default_factory=_Stats)
+    _vmax: np.ndarray | None = None
+
+    def _query(self, path: PathPiece, a: float, b: float):
+        k = self.opts.grid_points
+        q = path.at(np.linspace(a, b, k))
+        qc = q - q.mean(axis=0)
+        return q, qc
+
+    def _windows(self, path: PathPiece, a: float, b: float):
+        """Yield, per time scale, the resampled bank and its valid windows."""
+        bank, k = self.bank, self.opts.grid_points
+        dq = (b - a) * path.duration / bank.dt
+        counts = bank.counts
+        for scale in _scale_grid(*self.opts.time_scale, self.opts.scale_ratio):
+            dur = scale * dq
+            h = dur / (k - 1)
+            ok = np.flatnonzero(counts - 1 >= dur - 1e-9)
+            if ok.size == 0 or h <= 0:
+                continue
+            n_start = np.floor((counts[ok] - 1 - dur) / h + 1e-9).astype(np.int64) + 1
+            n_res = n_start + k - 1
+            base = np.concatenate([[0], np.cumsum(n_res)])
+            prim = np.repeat(ok, n_res)
+            local = np.arange(base[-1]) - np.repeat(base[:-1], n_res)
+            res = cubic_at(bank.points, bank.offsets[prim], counts[prim], local * h)
+            starts = np.concatenate([base[i] + np.arange(n_start[i]) for i in range(ok.size)])
+            s_prim = np.repeat(ok, n_start)
+            s_local = starts - np.repeat(base[:-1], n_start)
+            yield res, starts, s_prim, s_local * h, dur
+
+    def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        """Best distinct grid candidates that a continuous move within their cell could
+        bring below eps (Lipschitz gate, see :meth:`_slack`), best first."""
+        k, mode = self.opts.grid_points, self.opts.mode
+        q, qc = self._query(path, a, b)
+        sq = (qc * qc).sum(axis=0) if mode == "z" else float((qc * qc).sum())
+        pool: list[Candidate] = []
+        self.stats.queries += 1
+        for res, starts, s_prim, x0, dur in self._windows(path, a, b):
+            rmsd = self._score(res, starts, q, qc, sq, k, mode)
+            self.stats.windows += starts.size
+            self.stats.scored += starts.size
+            ok = np.flatnonzero(rmsd < eps + self._slack(s_prim, dur, k))
+            top = ok[np.argsort(rmsd[ok])[: 8 * self.opts.seeds]]
+            pool += [
+                Candidate(int(s_prim[t]), float(x0[t]), float(x0[t] + dur), float(rmsd[t]))
+                for t in top
+            ]
+        return _suppress(pool, self.opts.seeds)
+
+    def _slack(self, prim: np.ndarray, dur: float, k: int) -> np.ndarray:
+        """Bound on how much the RMSD can drop inside a grid cell.
+
+        Moving the start by up to h/2 and the duration to a neighbouring scale (factor
+        √ratio) moves each of the K points by at most h/2 + D(√ratio − 1) samples, i.e. by
+        at most that times the largest step between samples (×1.25 for the cubic
+        interpolation's overshoot); the RMSD against a fixed query is 1-Lipschitz in the
+        RMS point displacement.
+        """
+        if self._vmax is None:
+            step = np.linalg.norm(np.diff(self.bank.points, axis=0), axis=1)
+            step[self.bank.offsets[1:-1] - 1] = 0.0
+            self._vmax = np.maximum.reduceat(np.append(step, 0.0), self.bank.offsets[:-1])
+        cell = dur / (k - 1) / 2.0 + dur * (math.sqrt(self.opts.scale_ratio) - 1.0)
+        return 1.25 * self._vmax[prim] * cell
+
+    def _score(self, res, starts, q, qc, sq, k, mode) -> np.ndarray:
+        # centre per window via cumulative sums; the cross term needs no centring (Σ q̃ = 0)
+        res_c = res - res.mean(axis=0)
+        cs, cs2 = _cumsums(res_c)
+        sp = _window_moments(cs, cs2, starts, k, per_axis=(mode == "z"))
+        win = sliding_window_view(res_c, k, axis=0)[starts]  # (m, d, k)
+        s = np.einsum("mak,kb->mab", win, qc, optimize=True)
+        return rmsd_from_moments(s, sp, np.broadcast_to(sq, sp.shape), k, mode)
+
+
+@dataclass
+class LoopSearch(GridSearch):
+    """The same grid as :class:`GridSearch`, one Kabsch call per candidate (reference)."""
+
+    def _score(self, res, starts, q, qc, sq, k, mode) -> np.ndarray:
+        return np.array([kabsch(res[m : m + k], q, mode=mode).rmsd for m in starts])
+
+
+@dataclass(frozen=True)
+class _Level:
+    step: float
+    pts: np.ndarray  # (M, d) centred per primitive
+    prim: np.ndarray  # (M,)
+    x: np.ndarray  # (M,) fractional sample index in the primitive
+    garc: np.ndarray  # (M,) global arc coordinate (primitive arcs laid end to end)
+    left: np.ndarray  # (M,) arc length from this point to the primitive's end
+    cs: np.ndarray
+    cs2: np.ndarray
+
+
+@dataclass(frozen=True)
+class ArcIndex:
+    """The library resampled at uniform arc length, a pyramid of steps ``step0 · 2ʲ``.
+
+    Built once per bank (:meth:`build`); rigid motions and time scaling leave every
+    primitive's arc-length shape unchanged, so one index serves every query.
+    """
+
+    step0: float
+    levels: tuple[_Level, ...]
+    x_all: np.ndarray  # level-0 fractional sample index, for arc -> time
+    garc_all: np.ndarray
+
+    @classmethod
+    def build(cls, bank: BankArrays, points_per_sample: float = 0.25) -> ArcIndex:
+        pts = bank.points
+        counts = bank.counts
+        k = bank.k
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        # no arc across primitive boundaries
+        seg[bank.offsets[1:-1] - 1] = 0.0
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        starts_arc = cum[bank.offsets[:-1]]
+        length = cum[bank.offsets[1:] - 1] - starts_arc
+        total = float(length.sum())
+        step0 = max(total / max(points_per_sample * pts.shape[0], 1.0), 1e-300)
+        if total <= 0:
+            step0 = 1.0
+        n_lv0 = np.floor(length / step0 + 1e-9).astype(np.int64) + 1
+        prim = np.repeat(np.arange(k), n_lv0)
+        base = np.concatenate([[0], np.cumsum(n_lv0)])
+        local = np.arange(base[-1]) - np.repeat(base[:-1], n_lv0)
+        arc_local = local * step0
+        # arc -> sample index per primitive: one interp on a globally monotone arc axis
+        gap = np.arange(k) * (step0 * 4.0)  # separates primitives on the global axis
+        g_samples = cum + np.repeat(gap, counts)
+        g_samples = g_samples + np.arange(g_samples.size) * 1e-12 * max(step0, 1.0)
+        sample_idx = np.arange(pts.shape[0]) - np.repeat(bank.offsets[:-1], counts)
+        garc = arc_local + np.repeat(starts_arc + gap, n_lv0)
+        x = np.interp(garc, g_samples, sample_idx.astype(float))
+        x = np.minimum(x, np.repeat(counts - 1, n_lv0))
+        p = linear_at(pts, bank.offsets[prim], counts[prim], x)
+        cent = np.add.reduceat(p, base[:-1], axis=0) / n_lv0[:, None]
+        p -= cent[prim]
+        left = np.repeat(length, n_lv0) - arc_local
+        levels = []
+        lv = 0
+        while True:
+            sel = (local % (1 << lv)) == 0 if lv else np.ones(local.size, bool)
+            pl = np.ascontiguousarray(p[sel])
+            cs, cs2 = _cumsums(pl)
+            levels.append(
+                _Level(step0 * (1 << lv), pl, prim[sel], x[sel], garc[sel], left[sel], cs, cs2)
+            )
+            if sel.sum() <= 2 * k or (1 << lv) * step0 * 16 > length.max():
+                break
+            lv += 1
+        return cls(step0, tuple(levels), x, garc)
+
+
+@dataclass
+class IndexSearch:
+    """Seeds from the arc-length index with provable lower-bound pruning (see module notes)."""
+
+    bank: BankArrays
+    opts: SearchOptions
+    index: ArcIndex | None = None
+    target_points: int = 16
+    chunk: int = 4096
+    stats: _Stats = field(default_factory=_Stats)
+
+    def __post_init__(self) -> None:
+        if self.index is None:
+            self.index = ArcIndex.build(self.bank)
+        self._grid = GridSearch(self.bank, self.opts, self.stats)
+
+    def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        """Best distinct arc-window candidates below the gate 3·eps + Δ/2, best first.
+
+        A stored copy of the query starts within Δ/2 of arc length of some window start,
+        which moves each arc sample by at most Δ/2: its window scores below Δ/2 plus the
+        copy's own arc-sampled deviation (a few eps at most for a match within eps).
+        """
+        idx = self.index
+        n_dense = max(64, int(round((b - a) * (path.n - 1))) * 2 + 1)
+        dense = path.at(np.linspace(a, b, n_dense))
+        chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
+        ell = float(chord[-1])
+        if ell < 3.0 * idx.step0:
+            # a (nearly) stationary or very short piece: arc length cannot place it
+            return self._grid.seeds(path, a, b, eps)
+        lv_n = int(np.floor(np.log2(ell / (idx.step0 * (self.target_points - 1)))))
+        lv = idx.levels[int(np.clip(lv_n, 0, len(idx.levels) - 1))]
+        k = int(np.floor(ell / lv.step + 1e-9)) + 1
+        s = np.arange(k) * lv.step
+        t_dense = np.linspace(0.0, 1.0, n_dense)
+        u = np.interp(s, chord + np.arange(n_dense) * 1e-15 * max(ell, 1.0), t_dense)
+        q = path.at(a + (b - a) * u)
+        qc = q - q.mean(axis=0)
+        mode = self.opts.mode
+        per_axis = mode == "z"
+        sq = (qc * qc).sum(axis=0) if per_axis else float((qc * qc).sum())
+        g_q = math.sqrt(float(np.sum(sq)) / k)
+        # candidate windows: in one primitive, long enough, time scale in range
+        m_all = lv.pts.shape[0] - k + 1
+        if m_all <= 0:
+            return []
+        w = np.flatnonzero(lv.left[:m_all] >= ell - 1e-9 * ell)
+        self.stats.queries += 1
+        self.stats.windows += w.size
+        if w.size == 0:
+            return []
+        sp = _window_moments(lv.cs, lv.cs2, w, k, per_axis)
+        lb = np.abs(np.sqrt(np.maximum(np.sum(sp, axis=1) if per_axis else sp, 0.0) / k) - g_q)
+        win_view = sliding_window_view(lv.pts, k, axis=0)
+
+        dq = (b - a) * path.duration / self.bank.dt
+        lo, hi = self.opts.time_scale
+
+        def in_range(sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            # the window's duration follows from its arc length; keep the time scales in
+            # range (10 % slack: the refinement enforces the range exactly)
+            x_end = np.interp(lv.garc[w[sel]] + ell, idx.garc_all, idx.x_all)
+            scale = (x_end - lv.x[w[sel]]) / dq
+            ok = (scale >= lo / 1.1) & (scale <= hi * 1.1)
+            return sel[ok], x_end[ok]
+
+        def score(sel: np.ndarray) -> np.ndarray:
+            s_ = np.einsum("mak,kb->mab", win_view[w[sel]], qc, optimize=True)
+            sq_ = np.broadcast_to(sq, (sel.size, 3)) if per_axis else sq
+            return rmsd_from_moments(s_, sp[sel], sq_, k, mode)
+
+        m = self.opts.seeds
+        gate = 3.0 * eps + 0.5 * lv.step
+        done = np.zeros(w.size, bool)
+        kept: list[Candidate] = []
+        pool: list[Candidate] = []
+        todo = np.flatnonzero(lb < gate)
+        if todo.size > self.chunk:
+            todo = todo[np.argpartition(lb[todo], self.chunk - 1)[: self.chunk]]
+        while todo.size:
+            done[todo] = True
+            todo, x_end = in_range(todo)
+            r = score(todo)
+            self.stats.scored += todo.size
+            order = np.argsort(r)[: 8 * m]
+            order = order[r[order] < gate]
+            pool += [
+                Candidate(
+                    int(lv.prim[w[todo[t]]]), float(lv.x[w[todo[t]]]), float(x_end[t]), float(r[t])
+                )
+                for t in order
+            ]
+            kept = _suppress(pool, m)
+            pool = kept + [c for c in pool if c not in kept][: 8 * m]
+            tau = kept[-1].score if len(kept) == m else gate
+            todo = np.flatnonzero(~done & (lb < tau))
+            if todo.size > self.chunk:
+                todo = todo[np.argsort(lb[todo])[: self.chunk]]
+        return kept

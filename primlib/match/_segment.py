@@ -1,0 +1,328 @@
+"""Binary-search segmentation (primitive-matching paper, §3.2, Fig. 2) and ``match_path``.
+
+From the current cut a (initially 0) the paper probes the whole remainder first (v̄ = 1,
+step b = 1 − a); a probe that matches (some stored piece within ε, Step 2) moves the split
+forward by half the step, one that fails moves it back (Steps 3–4), until the step falls
+below the minimum σ; the longest matching prefix found becomes a segment (Step 5) and the
+search restarts from its end. The paper does not say what happens when nothing matches even
+at the minimum step: here the stretch [a, a + σ] becomes an *unmatched* segment
+(``primitive = None``; neighbouring unmatched stretches are merged) and the search goes on,
+so no part of the path is ever dropped.
+
+A probe "matches" when some seed (see ``_search``), refined continuously, has Kabsch RMSD
+below ε against the piece, both sampled at one point per path sample in the piece (16 at
+least, ``confirm_max`` at most) — the RMSD reported in the segment.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from primlib._errors import InputError, NotFoundError
+from primlib.match._bank import BankArrays, as_bank
+from primlib.match._kabsch import ROTATION_MODES
+from primlib.match._search import (
+    ArcIndex,
+    Candidate,
+    GridSearch,
+    IndexSearch,
+    LoopSearch,
+    PathPiece,
+    SearchOptions,
+    piece_rmsd,
+    refine,
+)
+from primlib.match._types import Match, Segment
+
+__all__ = ["segment_path", "match_path", "SEARCHES"]
+
+SEARCHES = ("index", "grid", "loop")
+
+# The arc-length index of the last bank searched, keyed by its arrays' identity and shape:
+# the store hands out a fresh Bank per call, so this saves rebuilding only for a caller that
+# reuses one bank (the benchmark, a batch of paths).
+_INDEX_CACHE: dict[tuple, ArcIndex] = {}
+
+
+@dataclass(frozen=True)
+class _Found:
+    cand: Candidate
+    rmsd: float
+    refined: bool
+
+
+def _check_inputs(points: np.ndarray, bank: BankArrays, eps: float, opts: SearchOptions):
+    if not (isinstance(eps, int | float) and math.isfinite(eps) and eps > 0):
+        raise InputError(f"eps: expected a tolerance > 0, got {eps!r}")
+    if opts.mode not in ROTATION_MODES:
+        raise InputError(f"rotation: expected one of full, z, none, got {opts.mode!r}")
+    lo, hi = opts.time_scale
+    if not (0 < lo <= hi and math.isfinite(hi)):
+        raise InputError(f"time_scale: expected 0 < low <= high, got ({lo!r}, {hi!r})")
+    if points.ndim != 2 or points.shape[0] < 2 or not np.all(np.isfinite(points)):
+        raise InputError(f"path: expected finite samples of shape (n >= 2, d), got {points.shape}")
+    if points.shape[1] != bank.dim:
+        raise InputError(
+            f"path: expected {bank.dim}-D points like the machine's primitives, "
+            f"got {points.shape[1]}-D"
+        )
+    if opts.mode == "z" and bank.dim != 3:
+        raise InputError(f"rotation: 'z' needs a 3-D machine, got {bank.dim}-D")
+
+
+def _make_searcher(bank: BankArrays, opts: SearchOptions, search: str):
+    if search == "grid":
+        return GridSearch(bank, opts)
+    if search == "loop":
+        return LoopSearch(bank, opts)
+    if search != "index":
+        raise InputError(f"search: expected one of index, grid, loop, got {search!r}")
+    key = (id(bank.points), bank.points.shape, bank.offsets.tobytes())
+    index = _INDEX_CACHE.get(key)
+    if index is None:
+        index = ArcIndex.build(bank)
+        _INDEX_CACHE.clear()
+        _INDEX_CACHE[key] = index
+    return IndexSearch(bank, opts, index=index)
+
+
+def _probe(searcher, bank, path, a, b, eps, opts, min_samples) -> _Found | None:
+    """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?"""
+    if (b - a) * (path.n - 1) < min_samples - 1 - 1e-9:
+        return None
+    kc = path.confirm_points(a, b, opts.confirm_max)
+    for seed in searcher.seeds(path, a, b, eps):
+        r0 = piece_rmsd(bank, seed, path, a, b, kc, opts.mode).rmsd
+        if r0 < eps:
+            return _Found(seed, r0, False)
+        ref = refine(bank, seed, path, a, b, opts, target=0.5 * eps)
+        r1 = piece_rmsd(bank, ref, path, a, b, kc, opts.mode).rmsd
+        if r1 < eps:
+            return _Found(ref, r1, True)
+    return None
+
+
+def _segment_of(bank, path, a, b, found: _Found, opts) -> Segment:
+    # the probe stopped at the first candidate within eps; report the refined optimum
+    cand, rmsd = found.cand, found.rmsd
+    kc = path.confirm_points(a, b, opts.confirm_max)
+    ref = refine(bank, cand, path, a, b, opts)
+    if piece_rmsd(bank, ref, path, a, b, kc, opts.mode).rmsd < rmsd:
+        cand = ref
+    res = piece_rmsd(bank, cand, path, a, b, kc, opts.mode)
+    n_p = bank.offsets[cand.prim + 1] - bank.offsets[cand.prim]
+    return Segment(
+        start=float(a),
+        end=float(b),
+        primitive=int(bank.ids[cand.prim]),
+        primitive_name=bank.names[cand.prim],
+        primitive_start=float(cand.x0 / (n_p - 1)),
+        primitive_end=float(cand.x1 / (n_p - 1)),
+        rotation=np.asarray(res.rotation),
+        translation=np.asarray(res.translation),
+        time_scale=float((cand.x1 - cand.x0) * bank.dt / ((b - a) * path.duration)),
+        rmsd=float(res.rmsd),
+    )
+
+
+def _unmatched(a: float, b: float, d: int) -> Segment:
+    nan = float("nan")
+    return Segment(float(a), float(b), None, None, nan, nan, np.eye(d), np.zeros(d), nan, nan)
+
+
+def segment_path(
+    bank: Any,
+    points: np.ndarray,
+    dt: float,
+    eps: float,
+    *,
+    rotation: str = "full",
+    time_scale: tuple[float, float] = (0.25, 4.0),
+    min_step: float | None = None,
+    search: str = "index",
+    options: SearchOptions | None = None,
+) -> tuple[list[Segment], dict[str, Any]]:
+    """Cut a path into the fewest pieces that each match a stored piece within eps.
+
+    Parameters
+    ----------
+    bank : BankArrays or the store's Bank
+        The machine's primitives on its dt grid (``points``, ``offsets``, ``dt``, ``ids``,
+        ``names``).
+    points : array, shape (n, d)
+        The new path at uniform time steps ``dt`` (normalised time v = i / (n − 1)).
+    dt : float
+        Sample time of ``points`` (s); the path lasts (n − 1)·dt.
+    eps : float
+        RMSD tolerance ε (user units), > 0.
+    rotation : {"full", "z", "none"}
+    time_scale : (float, float)
+        Allowed primitive duration / segment duration.
+    min_step : float, optional
+        Minimum search step σ in normalised path time; default one path sample, so cuts
+        land on the sample where a piece stops matching. A stretch nothing matches is
+        declared unmatched σ at a time, doubling while nothing matches.
+    search : {"index", "grid", "loop"}
+        Seed finder (module notes of ``_search``); all give the same segmentation on the
+        benchmark, "index" fast, "grid" the exhaustive reference, "loop" its per-candidate
+        Kabsch loop.
+    options : SearchOptions, optional
+        Further knobs; ``rotation`` and ``time_scale`` override its fields.
+
+    Returns
+    -------
+    segments : list of Segment
+        Contiguous, in path order, covering [0, 1].
+    info : dict
+        Probe, candidate and timing counts.
+
+    Raises
+    ------
+    InputError
+        eps <= 0, an unknown mode or search, a path of another dimension than the bank.
+    NoMatchError
+        The bank is empty.
+    """
+    t_start = time.perf_counter()
+    bank = as_bank(bank)
+    pts = np.asarray(points, dtype=float)
+    base = options or SearchOptions()
+    opts = SearchOptions(
+        mode=rotation,
+        time_scale=(float(time_scale[0]), float(time_scale[1])),
+        grid_points=base.grid_points,
+        scale_ratio=base.scale_ratio,
+        seeds=base.seeds,
+        refine_points=base.refine_points,
+        confirm_max=base.confirm_max,
+    )
+    _check_inputs(pts, bank, eps, opts)
+    n = pts.shape[0]
+    if not (isinstance(dt, int | float) and dt > 0):
+        raise InputError(f"dt: expected a sample time > 0, got {dt!r}")
+    path = PathPiece(pts, (n - 1) * float(dt))
+    min_samples = 8
+    sigma = 1.0 / (n - 1) if min_step is None else float(min_step)
+    if not (0 < sigma <= 1):
+        raise InputError(f"min_step: expected a fraction in (0, 1], got {min_step!r}")
+    t_index = time.perf_counter()
+    searcher = _make_searcher(bank, opts, search)
+    t_index = time.perf_counter() - t_index
+    segments: list[Segment] = []
+    probes = 0
+    sig = max(1, int(round(sigma * (n - 1))))  # σ in samples
+    last = n - 1
+    ia = 0
+    advance = sig
+    while ia < last:
+        # Steps 1-5 on the sample grid: halving with rounding up still reaches every split.
+        step = last - ia
+        iv = last
+        best: tuple[int, _Found] | None = None
+        while True:
+            probes += 1
+            found = _probe(searcher, bank, path, ia / last, iv / last, eps, opts, min_samples)
+            if found is not None:
+                best = (iv, found)
+                if iv == last:
+                    break
+            if step <= sig:
+                break
+            step = (step + 1) // 2
+            iv = min(last, iv + step) if found is not None else max(ia + 1, iv - step)
+        if best is not None:
+            segments.append(_segment_of(bank, path, ia / last, best[0] / last, best[1], opts))
+            ia = best[0]
+            advance = sig
+            continue
+        # Nothing matches from ia: declare an unmatched stretch, σ first, doubling while
+        # the failures go on (a sub-sample sliver costs one step, a long unmatched stretch
+        # only log2 of its length in searches).
+        ib = min(last, ia + advance)
+        if last - ib < min_samples:
+            ib = last  # never leave a sliver too short to match
+        if segments and segments[-1].primitive is None:
+            segments[-1] = _unmatched(segments[-1].start, ib / last, bank.dim)
+        else:
+            segments.append(_unmatched(ia / last, ib / last, bank.dim))
+        ia = ib
+        advance *= 2
+    stats = searcher.stats
+    info = {
+        "search": search,
+        "probes": probes,
+        "windows": stats.windows,
+        "scored": stats.scored,
+        "queries": stats.queries,
+        "index_seconds": t_index,
+        "seconds": time.perf_counter() - t_start,
+        "min_step": sigma,
+    }
+    return segments, info
+
+
+def match_path(
+    library: Any,
+    path: Any,
+    machine: str,
+    eps: float,
+    rotation: str = "full",
+    time_scale: tuple[float, float] = (0.25, 4.0),
+    **kw: Any,
+) -> Match:
+    """Match a new path against a machine's primitives in a library (``Library.match``).
+
+    Parameters
+    ----------
+    library : primlib.store.Library
+    path : Trajectory
+        The new path; sampled at the machine's dt (uniform in normalised time).
+    machine : str
+        Machine name; its primitives are the candidates.
+    eps : float
+        Kabsch RMSD tolerance (user units), > 0.
+    rotation : {"full", "z", "none"}
+    time_scale : (float, float)
+    **kw
+        ``min_step``, ``search``, ``options`` of :func:`segment_path`.
+
+    Returns
+    -------
+    Match
+
+    Raises
+    ------
+    InputError
+        eps <= 0, a path of another dimension than the machine, a bad option.
+    NotFoundError
+        An unknown machine.
+    NoMatchError
+        No primitive stored for the machine.
+
+    Examples
+    --------
+    >>> mt = lib.match(path, machine="xyz", eps=0.05)  # doctest: +SKIP
+    >>> [(s.primitive, round(s.rmsd, 3)) for s in mt.segments]  # doctest: +SKIP
+    """
+    if not (isinstance(eps, int | float) and math.isfinite(eps) and eps > 0):
+        raise InputError(f"eps: expected a tolerance > 0, got {eps!r}")
+    try:
+        mach = library.machine(machine)
+    except NotFoundError:
+        raise
+    except LookupError as exc:
+        raise NotFoundError(f"machine: no machine named {machine!r} in the library") from exc
+    if path.dim != mach.dim:
+        raise InputError(f"path: expected {mach.dim}-D like machine {machine!r}, got {path.dim}-D")
+    n = max(int(round(path.duration / mach.dt)) + 1, 2)
+    points = path.at(np.linspace(0.0, 1.0, n))
+    bank = library.bank(machine)
+    segments, info = segment_path(
+        bank, points, path.duration / (n - 1), eps, rotation=rotation, time_scale=time_scale, **kw
+    )
+    return Match(tuple(segments), machine, float(eps), rotation, path, info)
