@@ -70,6 +70,7 @@ def _register() -> None:
 # Helpers append their module here (one entry each).
 _COMMAND_MODULES: list[str] = [
     "_reproduce",
+    "_library",
 ]
 
 

@@ -8,6 +8,7 @@ matrices through the FFT without forming them. Notation: see :mod:`primlib.plant
 
 from primlib.plant._invert import invert
 from primlib.plant._lifted import max_singular_value, toeplitz_operator
+from primlib.plant._linear_motor import LinearMotor
 from primlib.plant._machine import Machine, machine_kinds, register_kind
 
 __all__ = [
@@ -17,4 +18,5 @@ __all__ = [
     "invert",
     "toeplitz_operator",
     "max_singular_value",
+    "LinearMotor",
 ]
