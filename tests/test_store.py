@@ -203,7 +203,7 @@ def test_add_many_rolls_back_when_the_insert_itself_fails(lib):
         (
             lambda: (curve(0, steps=1), np.zeros((2, 3)), "xyz"),
             InputError,
-            r"expected at least 8 samples on machine 'xyz''s grid \(T >= 7 dt = 0.035 s\), got 2",
+            r"at least 8 samples on the grid of machine 'xyz' \(T >= 7 dt = 0.035 s\), got 2",
         ),
         (
             lambda: (
@@ -212,7 +212,7 @@ def test_add_many_rolls_back_when_the_insert_itself_fails(lib):
                 "xyz",
             ),
             InputError,
-            r"whole number of machine 'xyz''s steps \(dt = 0.005 s\), got T = 1.2013 s",
+            r"whole number of steps of machine 'xyz' \(dt = 0.005 s\), got T = 1.2013 s",
         ),
         (
             lambda: (np.zeros((241, 3)), np.zeros((241, 3)), "xyz"),
@@ -233,7 +233,7 @@ def test_add_rejects_a_path_fitted_at_another_dt(lib):
     t = np.arange(1201) * 0.001
     path = Trajectory.from_samples(np.column_stack([np.cos(t), np.sin(t), t]), dt=0.001)
     with pytest.raises(
-        InputError, match=r"sampled at machine 'xyz''s dt = 0.005 s, got dt = 0.001 s"
+        InputError, match=r"sampled at the dt of machine 'xyz' \(0.005 s\), got dt = 0.001 s"
     ):
         lib.add(path, np.zeros((241, 3)), machine="xyz")
 

@@ -134,7 +134,8 @@ def _read_one(
     dt = (t[-1] - t[0]) / (len(t) - 1)
     if abs(dt - m.dt) > _DT_RTOL * m.dt:
         raise InputError(
-            f"{path}: expected samples at machine '{m.name}''s dt = {m.dt:g} s, got dt = {dt:.9g} s"
+            f"{path}: expected samples at the dt of machine '{m.name}' ({m.dt:g} s), "
+            f"got dt = {dt:.9g} s"
         )
     if points.shape[1] != m.dim:
         raise InputError(

@@ -598,20 +598,20 @@ class Library:
         own_dt = getattr(path, "dt", None)
         if own_dt is not None and abs(float(own_dt) - dt) > _DT_RTOL * dt:
             raise InputError(
-                f"{label}: expected a path sampled at machine {machine!r}'s dt = {dt:g} s, "
+                f"{label}: expected a path sampled at the dt of machine {machine!r} ({dt:g} s), "
                 f"got dt = {float(own_dt):g} s"
             )
         duration = float(path.duration)
         steps = duration / dt
         if not math.isfinite(steps) or steps < 1 or abs(steps - round(steps)) > _STEP_RTOL:
             raise InputError(
-                f"{label}: expected a duration that is a whole number of machine "
-                f"{machine!r}'s steps (dt = {dt:g} s), got T = {duration:.9g} s"
+                f"{label}: expected a duration that is a whole number of steps of machine "
+                f"{machine!r} (dt = {dt:g} s), got T = {duration:.9g} s"
             )
         n = int(round(steps)) + 1
         if n < MIN_ROWS:
             raise InputError(
-                f"{label}: expected at least {MIN_ROWS} samples on machine {machine!r}'s grid "
+                f"{label}: expected at least {MIN_ROWS} samples on the grid of machine {machine!r} "
                 f"(T >= {MIN_ROWS - 1} dt = {(MIN_ROWS - 1) * dt:g} s), got {n}"
             )
         try:
