@@ -1,0 +1,248 @@
+"""Library (DuckDB) benchmark: batch ingest, loading a machine's bank, one signal by id.
+
+    python benchmarks/bench_store.py [--k 1000] [--n 2400] [--repeat 3]
+
+Figures (goals from issue 2), each beside a baseline measured in the same run:
+
+* ingest k = 1,000 primitives (3 axes, n = 2,400 samples) into a FILE library through
+  ``Library.add_many`` in one batch (checks, sampling each path on the machine grid, Arrow
+  list columns over the flat buffers, one INSERT, commit): goal <= 1 s. Baseline: the same
+  rows through ``executemany`` (parameters prepared as Python lists beforehand, so only the
+  database work is timed) on a subset, scaled to k.
+* loading the bank back (``Library.bank``: one columnar query to Arrow to flat numpy) from a
+  freshly opened file: goal <= 0.2 s. Baseline: a row loop, one indexed query per primitive.
+* one signal by id (``Library.signal``, a unique-index lookup), median: goal <= 2 ms.
+  Baseline: the same query on a copy of the table without the index.
+
+The trajectories are built with ``Trajectory.from_definition`` from a few distinct curves,
+so the benchmark times the store, not the fitting. Each fast path is checked to return what
+its baseline returns.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import duckdb  # noqa: E402
+import numpy as np  # noqa: E402
+
+from primlib.nurbs import Trajectory  # noqa: E402
+from primlib.plant import Machine  # noqa: E402
+from primlib.store import Library  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+MACHINE = ROOT / "data" / "machines" / "xyz.json"
+
+
+def make_items(k: int, n: int, dt: float, distinct: int = 5, seed: int = 0):
+    """k (trajectory, u, name, source) items: fresh Trajectory objects over a few curves."""
+    rng = np.random.default_rng(seed)
+    duration = (n - 1) * dt
+    p, m = 3, 24
+    knots = np.concatenate([np.zeros(p + 1), np.linspace(0, 1, m - p + 1)[1:-1], np.ones(p + 1)])
+    defs = [
+        (knots, rng.uniform(-100, 100, (m, 3)), rng.uniform(0.5, 2, m)) for _ in range(distinct)
+    ]
+    t = np.arange(n) * dt
+    base = np.stack([np.sin(2 * np.pi * t / duration * (j + 1)) for j in range(3)], axis=1)
+    items = []
+    for i in range(k):
+        kn, ctrl, w = defs[i % distinct]
+        traj = Trajectory.from_definition(p, kn, ctrl, w, duration)
+        u = base * (1 + i / k) + 1e-3 * rng.standard_normal((n, 3))
+        items.append((traj, u, f"prim-{i}", "bench"))
+    return items
+
+
+def fresh_library(folder: Path, name: str, machine: Machine) -> Path:
+    db = folder / name
+    with Library(db) as lib:
+        lib.add_machine(machine)
+    return db
+
+
+def bench_ingest(folder: Path, k: int, n: int, machine: Machine, repeat: int):
+    times, closes, sampling = [], [], []
+    for r in range(repeat):
+        # fresh Trajectory objects each time: none has its splines cached yet
+        fresh = make_items(k, n, machine.dt)
+        t0 = time.perf_counter()
+        for traj, *_ in fresh:
+            traj.sample(machine.dt)
+        sampling.append(time.perf_counter() - t0)
+        items = make_items(k, n, machine.dt)
+        db = fresh_library(folder, f"ingest{r}.duckdb", machine)
+        lib = Library(db)
+        t0 = time.perf_counter()
+        ids = lib.add_many(items, machine.name)
+        times.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        lib.close()  # DuckDB checkpoints the WAL into the file here
+        closes.append(time.perf_counter() - t0)
+        assert len(ids) == len(items)
+        if r < repeat - 1:
+            db.unlink()
+    return db, float(np.median(times)), float(np.median(closes)), float(np.median(sampling))
+
+
+def bench_executemany(folder: Path, items, machine: Machine, subset: int):
+    """Baseline: executemany of the same rows into the same table, on a subset."""
+    db = fresh_library(folder, "executemany.duckdb", machine)
+    dt = machine.dt
+    rows = []
+    for i, (traj, u, name, source) in enumerate(items[:subset]):
+        d = traj.definition()
+        rows.append(
+            [
+                i + 1,
+                machine.name,
+                name,
+                source,
+                traj.duration,
+                dt,
+                3,
+                len(u),
+                d["degree"],
+                d["knots"].tolist(),
+                d["ctrlpts"].ravel().tolist(),
+                d["weights"].tolist(),
+                traj.sample(dt).ravel().tolist(),
+                u.ravel().tolist(),
+            ]
+        )
+    con = duckdb.connect(str(db))
+    con.begin()
+    t0 = time.perf_counter()
+    con.executemany(
+        "INSERT INTO primitives VALUES "
+        "(?, ?, ?, ?, now()::TIMESTAMP, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        rows,
+    )
+    con.commit()
+    elapsed = time.perf_counter() - t0
+    con.close()
+    return db, elapsed
+
+
+def bench_bank(db: Path, machine: str, repeat: int):
+    times = []
+    for _ in range(repeat):
+        with Library(db, read_only=True) as lib:  # fresh open: DuckDB's cache is cold
+            t0 = time.perf_counter()
+            bank = lib.bank(machine)
+            times.append(time.perf_counter() - t0)
+    with Library(db, read_only=True) as lib:
+        t0 = time.perf_counter()
+        rows = [(lib.get(int(i)).points, lib.signal(int(i))) for i in bank.ids]
+        loop = time.perf_counter() - t0
+    return bank, rows, float(np.median(times)), loop
+
+
+def bench_signal(db: Path, folder: Path, ids: np.ndarray, lookups: int):
+    rng = np.random.default_rng(1)
+    pick = rng.choice(ids, lookups)
+    times = []
+    with Library(db, read_only=True) as lib:
+        lib.signal(int(pick[0]))  # warm the connection
+        for i in pick:
+            t0 = time.perf_counter()
+            lib.signal(int(i))
+            times.append(time.perf_counter() - t0)
+        check = {int(i): lib.signal(int(i)) for i in pick[:20]}
+    # Baseline: the same table and query without the unique index (a copy made by CTAS).
+    plain = folder / "noindex.duckdb"
+    shutil.copy(db, plain)
+    con = duckdb.connect(str(plain))
+    con.execute("CREATE TABLE plain AS SELECT id, dim, signal FROM primitives")
+    con.execute("DROP TABLE primitives")
+    con.execute("CHECKPOINT")
+    base = []
+    for i in pick[: max(20, lookups // 10)]:
+        t0 = time.perf_counter()
+        table = con.sql(
+            "SELECT dim, signal FROM plain WHERE id = $id", params={"id": int(i)}
+        ).to_arrow_table()
+        u = table.column("signal").combine_chunks().flatten().to_numpy().reshape(-1, 3)
+        base.append(time.perf_counter() - t0)
+        if int(i) in check:
+            np.testing.assert_array_equal(u, check[int(i)])
+    con.close()
+    return float(np.median(times)), float(np.median(base))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--k", type=int, default=1000, help="primitives (default 1000)")
+    ap.add_argument("--n", type=int, default=2400, help="samples per primitive (default 2400)")
+    ap.add_argument("--repeat", type=int, default=3, help="repetitions for medians (default 3)")
+    ap.add_argument("--subset", type=int, default=40, help="rows for the executemany baseline")
+    args = ap.parse_args()
+
+    machine = Machine.from_json(MACHINE)
+    items = make_items(args.k, args.n, machine.dt)
+    mb = 2 * args.k * args.n * 3 * 8 / 1e6
+    print(f"primlib store benchmark: {args.k} primitives x {args.n} samples x 3 axes ")
+    print(f"({mb:.0f} MB of points + signals), duckdb {duckdb.__version__}, medians\n")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        db, ingest, close, sampling = bench_ingest(folder, args.k, args.n, machine, args.repeat)
+        base_db, base_sub = bench_executemany(folder, items, machine, args.subset)
+        base = base_sub * args.k / args.subset
+        # same rows, same table: what the fast path stored equals what executemany stored
+        with Library(db, read_only=True) as fast, Library(base_db, read_only=True) as slow:
+            for i in range(1, args.subset + 1, max(1, args.subset // 8)):
+                np.testing.assert_array_equal(fast.signal(i), slow.signal(i))
+                np.testing.assert_array_equal(fast.get(i).points, slow.get(i).points)
+
+        bank, rows, load, loop = bench_bank(db, machine.name, args.repeat)
+        np.testing.assert_array_equal(bank.points, np.concatenate([p for p, _ in rows]))
+        np.testing.assert_array_equal(bank.signals, np.concatenate([s for _, s in rows]))
+        np.testing.assert_array_equal(bank.signals[: args.n], items[0][1])
+
+        one, one_base = bench_signal(db, folder, bank.ids, 200)
+        size = db.stat().st_size / 1e6
+
+    rows_out = [
+        (
+            f"ingest {args.k:,} primitives (add_many, commit)",
+            ingest,
+            1.0,
+            base,
+            "executemany, scaled",
+        ),
+        ("load the bank from a fresh open", load, 0.2, loop, "row loop (get + signal)"),
+        ("one signal by id", one, 0.002, one_base, "same query, no index"),
+    ]
+    w = max(len(r[0]) for r in rows_out)
+    print(
+        f"{'figure':<{w}}  {'value':>10}  {'goal':>8}  {'baseline':>10}  {'ratio':>7}  baseline is"
+    )
+    for label, value, goal, baseline, what in rows_out:
+        v = f"{value * 1e3:.2f} ms" if value < 0.1 else f"{value:.3f} s"
+        b = f"{baseline * 1e3:.2f} ms" if baseline < 0.1 else f"{baseline:.3f} s"
+        g = f"{goal * 1e3:g} ms" if goal < 0.1 else f"{goal:g} s"
+        ok = "" if value <= goal else "  (over goal)"
+        print(f"{label:<{w}}  {v:>10}  {g:>8}  {b:>10}  {baseline / value:>6.1f}x  {what}{ok}")
+    print(
+        f"\nof the ingest, sampling the {args.k} paths on the machine grid "
+        f"(Trajectory.sample, primlib.nurbs): {sampling:.3f} s; the store's own work: "
+        f"{ingest - sampling:.3f} s"
+    )
+    print(f"close after the ingest (DuckDB checkpoint into the file): {close:.3f} s")
+    print(
+        f"file size: {size:.0f} MB; ingest rate {mb / ingest:.0f} MB/s, bank {mb / load:.0f} MB/s"
+    )
+
+
+if __name__ == "__main__":
+    main()
