@@ -143,6 +143,20 @@ def test_bank_orders_by_id_after_removals(lib):
     np.testing.assert_array_equal(np.diff(bank.offsets), [241] * 4)
 
 
+def test_bank_is_cached_until_the_machine_s_primitives_change(lib):
+    a, b = lib.add_many([(curve(s), signal_for(curve(s), s)) for s in range(2)], "xyz")
+    bank = lib.bank("xyz")
+    assert lib.bank("xyz") is bank
+    assert not bank.points.flags.writeable and not bank.signals.flags.writeable
+    lib.remove(a)
+    c = lib.add(curve(5), signal_for(curve(5), 5), machine="xyz")
+    again = lib.bank("xyz")
+    assert again is not bank and list(again.ids) == [b, c]
+    np.testing.assert_array_equal(again.signal_of(1), signal_for(curve(5), 5))
+    lib.remove(c)  # same count as before the add, smaller largest id
+    assert list(lib.bank("xyz").ids) == [b]
+
+
 # ---------------------------------------------------------------------------- transactions
 def test_add_many_checks_everything_first_so_a_bad_item_writes_nothing(lib):
     good = [(curve(s), signal_for(curve(s)), f"g{s}", None) for s in range(4)]

@@ -141,6 +141,7 @@ class Library:
         self._path = None if path is None else os.fspath(path)
         self._read_only = bool(read_only)
         self._machines_cache: dict[str, Any] = {}
+        self._bank_cache: dict[str, tuple[tuple, Bank]] = {}
         self._con: Any = None
         self._con = self._connect(create)
         try:
@@ -771,7 +772,9 @@ class Library:
         -------
         Bank
             Ordered by id; ``points`` and ``signals`` of shape (N, d) concatenated, with
-            ``offsets`` (k + 1,). Empty (k = 0) when the machine has no primitives.
+            ``offsets`` (k + 1,). Empty (k = 0) when the machine has no primitives. Its
+            arrays are read-only: while the machine's primitives are unchanged, later calls
+            return the same Bank without reading the file again.
 
         Raises
         ------
@@ -779,6 +782,26 @@ class Library:
             Unknown machine.
         """
         dt, axes, _ = self._machine_row(machine)
+        # Ids are issued by a sequence and never reused, and stored primitives never change,
+        # so (count, largest id) pins down a machine's set exactly: an unchanged set is
+        # served from the cache (its arrays are read-only), any add or remove reloads it.
+        count, last = (
+            self._db()
+            .sql(
+                "SELECT count(*), max(id) FROM primitives WHERE machine = $m",
+                params={"m": machine},
+            )
+            .fetchall()[0]
+        )
+        key = (count, last, dt, tuple(axes))
+        cached = self._bank_cache.get(machine)
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        bank = self._load_bank(machine, dt, axes)
+        self._bank_cache[machine] = (key, bank)
+        return bank
+
+    def _load_bank(self, machine: str, dt: float, axes: list[str]) -> Bank:
         d = len(axes)
         table = (
             self._db()
@@ -803,7 +826,7 @@ class Library:
         n = table.column("n_samples").to_numpy().astype(np.int64)
         knots_arr = table.column("knots").combine_chunks()
         weights_arr = table.column("weights").combine_chunks()
-        return Bank(
+        bank = Bank(
             machine=machine,
             dt=dt,
             dim=d,
@@ -820,6 +843,10 @@ class Library:
             weights=_flat(table.column("weights")),
             ctrl_offsets=offsets_of(weights_arr.value_lengths().to_numpy(zero_copy_only=False)),
         )
+        for value in vars(bank).values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+        return bank
 
     # ------------------------------------------------------------------ removing
     def remove(self, id: int) -> None:
