@@ -234,7 +234,7 @@ def learn_signal(
     *,
     eps: float | None = None,
     tol: float | None = None,
-    law: str = "pd",
+    law: str = "norm-optimal",
 ) -> np.ndarray:
     """Converged ILC input for a path on a machine's model, warm-started from the library.
 
@@ -272,5 +272,16 @@ def learn_signal(
             u0 = warm_start(library, traj, machine, e).u
         except NoMatchError:
             u0 = None
-    res = learn(m, ref, u0, law=law, iterations=int(iterations), tol=tol)
+    # dense convergence check (primlib.ilc's iterative one can fail to converge when the
+    # learning matrix's eigenvalues cluster at 1)
+    res = learn(
+        m,
+        ref,
+        u0,
+        law=law,
+        iterations=int(iterations),
+        tol=tol,
+        contour=False,
+        dense_limit=max(400, min(ref.shape[0], 3000)),
+    )
     return np.asarray(res.u)

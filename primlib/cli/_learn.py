@@ -1,0 +1,248 @@
+"""``primlib learn``: ILC on a machine model from the library's warm start (or from zero).
+
+The loop of the primitive-matching paper's figure 1: match the new path, splice the stored
+signals into a first-iteration input, run ILC from it, and (``--ingest``) store the
+converged input as a new primitive, so the library grows with every path it learns.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+from primlib._errors import InputError, NoMatchError
+from primlib.cli import main
+
+__all__ = ["learn", "run_learning"]
+
+
+def run_learning(
+    lib,
+    trajectory,
+    machine_name: str,
+    *,
+    cold: bool,
+    iterations: int,
+    eps: float | None,
+    band: float | None,
+    law: str,
+    tol: float | None,
+    contour: bool = True,
+) -> dict[str, Any]:
+    """Warm start (unless ``cold``) and ILC on the machine model; everything the CLI reports.
+
+    Returns
+    -------
+    dict
+        ``machine`` (Machine), ``reference`` (n, d), ``t`` (n,), ``warm`` (WarmStart or None),
+        ``start`` ("warm" / "cold"), ``result`` (ILCResult), ``contour`` (list or None),
+        ``notes`` (list of str).
+    """
+    from primlib.ilc import learn as ilc_learn
+    from primlib.splice import warm_start
+
+    m = lib.machine(machine_name)
+    pts = trajectory.sample(m.dt)
+    ref = pts - pts[0]
+    t = np.arange(pts.shape[0]) * m.dt
+    notes: list[str] = []
+    ws = None
+    u0 = None
+    if not cold:
+        e = eps if eps is not None else 0.01 * (trajectory.extent or 1.0)
+        try:
+            ws = warm_start(lib, trajectory, machine_name, e, band=band)
+            u0 = ws.u
+        except NoMatchError as exc:
+            notes.append(f"no warm start ({exc}); starting from zero")
+    # dense convergence check (primlib.ilc's iterative one can fail to converge when the
+    # learning matrix's eigenvalues cluster at 1)
+    res = ilc_learn(
+        m,
+        ref,
+        u0,
+        law=law,
+        iterations=iterations,
+        tol=tol,
+        contour=contour and m.dim >= 2,
+        dense_limit=max(400, min(ref.shape[0], 3000)),
+    )
+    crms = None if res.rms_contour is None else [float(x) for x in res.rms_contour]
+    return {
+        "machine": m,
+        "reference": ref,
+        "t": t,
+        "warm": ws,
+        "start": "warm" if ws is not None else "cold",
+        "result": res,
+        "contour": crms,
+        "notes": notes,
+    }
+
+
+@main.command("learn")
+@click.argument("path", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--machine", "-m", "machine_name", required=True, help="Machine name.")
+@click.option("--cold", is_flag=True, help="Start ILC from zero instead of the warm start.")
+@click.option(
+    "--iterations",
+    "-n",
+    default=20,
+    show_default=True,
+    type=click.IntRange(min=1),
+    help="ILC trials at most.",
+)
+@click.option("--eps", type=float, help="Match tolerance (default: 1 % of the path's extent).")
+@click.option("--band", type=float, help="Transition band width, seconds (default 8 dt).")
+@click.option(
+    "--law", default="norm-optimal", show_default=True, help="ILC law (see primlib.ilc.learn)."
+)
+@click.option("--tol", type=float, help="Stop when the RMS tracking error is below this.")
+@click.option("--ingest", is_flag=True, help="Store the converged input as a new primitive.")
+@click.option("--name", help="Name of the stored primitive (default: the file's stem).")
+@click.option(
+    "--plot",
+    "plot_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write a figure: path and segments, u0 with bands, RMS warm vs cold.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.pass_context
+def learn(
+    ctx: click.Context,
+    path: Path,
+    machine_name: str,
+    cold: bool,
+    iterations: int,
+    eps: float | None,
+    band: float | None,
+    law: str,
+    tol: float | None,
+    ingest: bool,
+    name: str | None,
+    plot_file: Path | None,
+    as_json: bool,
+) -> None:
+    """Learn the input for PATH (CSV t,x,y[,z]) by ILC on the machine's model.
+
+    Starts from the library's warm start (match, time scale, superpose, splice) unless
+    --cold; prints the RMS tracking (and contour) error per iteration; --ingest stores the
+    converged input as a new primitive. Example:
+
+    primlib learn data/paths/zigzag.csv --machine xyz --plot warm-start.png
+    """
+    from primlib.nurbs import Trajectory
+    from primlib.store import Library
+
+    if eps is not None and not eps > 0:
+        raise InputError(f"--eps: expected a match tolerance > 0, got {eps}")
+    if tol is not None and not tol > 0:
+        raise InputError(f"--tol: expected a tolerance > 0, got {tol}")
+    if band is not None and not band >= 0:
+        raise InputError(f"--band: expected a width >= 0 s, got {band}")
+    if not path.is_file():
+        raise InputError(f"{path}: expected a path CSV file, got no such file")
+    trajectory = Trajectory.from_csv(path)
+    db = ctx.find_root().obj["db"]
+    with Library(db, read_only=not ingest, create=False) as lib:
+        run = run_learning(
+            lib,
+            trajectory,
+            machine_name,
+            cold=cold,
+            iterations=iterations,
+            eps=eps,
+            band=band,
+            law=law,
+            tol=tol,
+        )
+        cold_run = None
+        if plot_file is not None and run["start"] == "warm":
+            cold_run = run_learning(
+                lib,
+                trajectory,
+                machine_name,
+                cold=True,
+                iterations=iterations,
+                eps=eps,
+                band=band,
+                law=law,
+                tol=tol,
+                contour=False,
+            )
+        res = run["result"]
+        new_id = None
+        if ingest:
+            new_id = lib.add(
+                trajectory,
+                np.asarray(res.u),
+                machine=machine_name,
+                name=name or path.stem,
+                source=f"{path} (primlib learn, {run['start']} start)",
+            )
+    if plot_file is not None:
+        from primlib.plot._warm import plot_warm_start
+
+        plot_warm_start(
+            plot_file,
+            trajectory.sample(run["machine"].dt),
+            run["t"],
+            run["warm"],
+            np.asarray(res.rms_total),
+            None if cold_run is None else np.asarray(cold_run["result"].rms_total),
+            axes=run["machine"].axes,
+        )
+    rms = np.asarray(res.rms_total)
+    crms = run["contour"]
+    if as_json:
+        out = {
+            "path": str(path),
+            "machine": machine_name,
+            "start": run["start"],
+            "iterations": [
+                {
+                    "iteration": i,
+                    "rms": float(rms[i]),
+                    "rms_axes": np.asarray(res.rms)[i].tolist(),
+                    "contour_rms": None if crms is None else crms[i],
+                }
+                for i in range(rms.size)
+            ],
+            "stopped": getattr(res, "stopped", None),
+            "warm_start": None if run["warm"] is None else run["warm"].to_dict(),
+            "cold_rms": None
+            if cold_run is None
+            else np.asarray(cold_run["result"].rms_total).tolist(),
+            "ingested": new_id,
+            "notes": run["notes"],
+        }
+        click.echo(json.dumps(out))
+        return
+    for note in run["notes"]:
+        click.echo(f"note: {note}", err=True)
+    ws = run["warm"]
+    if ws is not None:
+        click.echo(f"warm start from {len(ws.match.segments)} segment(s):")
+        for line in ws.sources:
+            click.echo(f"  {line}")
+    click.echo(
+        f"{'iteration':>9}  {'rms':>12}" + ("" if crms is None else f"  {'contour rms':>12}")
+    )
+    for i in range(rms.size):
+        line = f"{i:>9}  {rms[i]:>12.6g}"
+        if crms is not None:
+            line += f"  {crms[i]:>12.6g}"
+        click.echo(line)
+    stopped = getattr(res, "stopped", None)
+    if stopped:
+        click.echo(f"stopped: {stopped}")
+    if new_id is not None:
+        click.echo(f"stored primitive {new_id} ({name or path.stem}) for machine '{machine_name}'")
+    if plot_file is not None:
+        click.echo(f"wrote {plot_file}", err=True)
+    sys.stdout.flush()

@@ -1,0 +1,188 @@
+"""``primlib learn``: warm start -> ILC -> (ingest), through CliRunner, read back."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from primlib.cli import main
+from primlib.io import write_path_csv, write_signal_csv
+from primlib.nurbs import Trajectory
+from primlib.plant import Machine, invert
+from primlib.store import Library
+
+ROOT = Path(__file__).resolve().parents[1]
+XYZ = ROOT / "data" / "machines" / "xyz.json"
+DT = 0.005
+
+
+def _minjerk(r):
+    return 10 * r**3 - 15 * r**4 + 6 * r**5
+
+
+def _arc(T):
+    s = _minjerk(np.arange(round(T / DT) + 1) * DT / T)
+    return np.stack([10 * np.sin(np.pi / 2 * s), 10 * (1 - np.cos(np.pi / 2 * s)), 3 * s], 1)
+
+
+def _line(T):
+    s = _minjerk(np.arange(round(T / DT) + 1) * DT / T)
+    return np.stack([12 * s, 0 * s, -2 * s], 1)
+
+
+@pytest.fixture()
+def setup(tmp_path):
+    """A library file with two primitives, and a new path: the arc at 0.8x speed, then the
+    line rotated 90 degrees about z, at rest at the junction."""
+    m = Machine.from_json(XYZ)
+    db = tmp_path / "lib.duckdb"
+    runner = CliRunner()
+    assert runner.invoke(main, ["--db", str(db), "machine", "add", str(XYZ)]).exit_code == 0
+    files = []
+    for stem, pts in (("arc", _arc(1.0)), ("line", _line(1.0))):
+        t = np.arange(pts.shape[0]) * DT
+        f = tmp_path / f"{stem}.csv"
+        write_path_csv(f, t, pts)
+        ref = Trajectory.from_csv(f).sample(DT)
+        write_signal_csv(tmp_path / f"{stem}.signal.csv", t, invert(m, ref - ref[0]))
+        files.append(str(f))
+    res = runner.invoke(main, ["--db", str(db), "ingest", *files, "--machine", "xyz"])
+    assert res.exit_code == 0, res.output
+    a = _arc(1.25)
+    rz = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])
+    b = _line(1.0) @ rz.T
+    path = np.vstack([a, (b + a[-1] - b[0])[1:]])
+    new = tmp_path / "new.csv"
+    write_path_csv(new, np.arange(path.shape[0]) * DT, path)
+    return runner, db, new
+
+
+def test_learn_warm_beats_cold_and_ingests(setup, tmp_path):
+    runner, db, new = setup
+    warm = runner.invoke(
+        main,
+        [
+            "--db",
+            str(db),
+            "learn",
+            str(new),
+            "--machine",
+            "xyz",
+            "--iterations",
+            "3",
+            "--eps",
+            "0.01",
+            "--json",
+        ],
+    )
+    assert warm.exit_code == 0, warm.output
+    w = json.loads(warm.output)
+    assert w["start"] == "warm"
+    assert len(w["iterations"]) >= 2
+    cold = runner.invoke(
+        main,
+        [
+            "--db",
+            str(db),
+            "learn",
+            str(new),
+            "--machine",
+            "xyz",
+            "--iterations",
+            "3",
+            "--cold",
+            "--json",
+        ],
+    )
+    c = json.loads(cold.output)
+    assert c["start"] == "cold" and c["warm_start"] is None
+    # on the nominal model the warm start is the stored inputs, exactly transformed: its
+    # first trial is orders of magnitude better than starting from zero
+    assert w["iterations"][0]["rms"] < c["iterations"][0]["rms"] / 100
+    assert w["iterations"][0]["contour_rms"] is not None
+    with Library(db, read_only=True) as lib:
+        assert len(lib.primitives("xyz")) == 2  # nothing stored without --ingest
+
+    res = runner.invoke(
+        main,
+        [
+            "--db",
+            str(db),
+            "learn",
+            str(new),
+            "--machine",
+            "xyz",
+            "--iterations",
+            "4",
+            "--eps",
+            "0.01",
+            "--ingest",
+            "--name",
+            "arc-then-line",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert "iteration" in res.output and "stored primitive" in res.output
+    with Library(db, read_only=True) as lib:
+        infos = lib.primitives("xyz")
+        assert [i.name for i in infos][-1] == "arc-then-line"
+        prim = lib.get(infos[-1].id)
+        m = lib.machine("xyz")
+    y = m.simulate(prim.signal)
+    err = np.sqrt(np.mean((y - (prim.points - prim.points[0])) ** 2))
+    assert err < 1e-3  # the converged input, read back, tracks the stored path
+
+
+def test_learn_plot_writes_a_figure(setup, tmp_path):
+    runner, db, new = setup
+    fig = tmp_path / "warm.png"
+    res = runner.invoke(
+        main,
+        [
+            "--db",
+            str(db),
+            "learn",
+            str(new),
+            "--machine",
+            "xyz",
+            "--iterations",
+            "2",
+            "--eps",
+            "0.01",
+            "--plot",
+            str(fig),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--machine", "nope"], "nope"),
+        (["--machine", "xyz", "--eps", "0"], "--eps: expected a match tolerance > 0, got 0"),
+        (["--machine", "xyz", "--tol", "-1"], "--tol: expected a tolerance > 0, got -1"),
+        (["--machine", "xyz", "--band", "-1"], "--band: expected a width >= 0 s, got -1"),
+    ],
+)
+def test_learn_bad_input_exits_2_and_writes_nothing(setup, args, message):
+    runner, db, new = setup
+    before = db.read_bytes()
+    res = runner.invoke(main, ["--db", str(db), "learn", str(new), *args, "--ingest"])
+    assert res.exit_code == 2
+    assert message in res.output
+    assert db.read_bytes() == before
+
+
+def test_learn_missing_file_exits_2(setup, tmp_path):
+    runner, db, _ = setup
+    res = runner.invoke(
+        main, ["--db", str(db), "learn", str(tmp_path / "none.csv"), "--machine", "xyz"]
+    )
+    assert res.exit_code == 2
+    assert "none.csv: expected a path CSV file, got no such file" in res.output
