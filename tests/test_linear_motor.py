@@ -14,9 +14,10 @@ JSON = Path(__file__).resolve().parents[1] / "data" / "machines" / "linear-motor
 
 
 def spec(**motor):
+    # the physics tests drive forces directly: K = 1 N per input unit unless given
     d = json.loads(JSON.read_text())
     for axis in d["motors"]:
-        d["motors"][axis].update(motor)
+        d["motors"][axis].update({"K": 1.0} | motor)
     return d
 
 

@@ -43,11 +43,13 @@ from primlib.contour._estimate import (
     brute_force_contour_error,
     contour_error,
 )
+from primlib.contour._online import OnlineContourEstimator
 
 __all__ = [
     "METHODS",
     "ContourEstimate",
     "ContourEstimator",
+    "OnlineContourEstimator",
     "brute_force_contour_error",
     "contour_error",
     "ellipse_closest_point",
