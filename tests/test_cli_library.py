@@ -123,7 +123,11 @@ def test_ingest_many_reads_sibling_signals(tmp_path, db):
             np.testing.assert_array_equal(lib.signal(p.id), u)
 
 
-def test_ingest_learn_stores_a_learned_signal(tmp_path, db):
+def test_ingest_learn_stores_a_learned_signal(tmp_path):
+    # An empty machine: learn_signal starts cold (nothing to warm-start from), which keeps
+    # this a test of the command's wiring; primlib.splice's tests cover the learning.
+    db = tmp_path / "lib.duckdb"
+    assert run(db, "machine", "add", DATA / "xyz.json").exit_code == 0
     t, pts = path_points(3)
     write_path_csv(tmp_path / "learn.csv", t, pts)
     res = run(db, "ingest", tmp_path / "learn.csv", "--learn", "--iterations", "2", "-m", "xyz")

@@ -223,12 +223,11 @@ def ingest(
     files = [Path(p) for p in paths]
     sigs: list[Path | None] = [Path(s) for s in signals] if signals else [None] * len(files)
 
-    with _open(ctx) as lib:
+    # Read, check and fit every file (and learn) with the library open read-only, so other
+    # readers are not locked out meanwhile; take the write lock only for the one transaction.
+    with _open(ctx, read_only=True) as lib:
         m = lib.machine(machine_name)
-        learn_signal = None
-        if learn:
-            from primlib.splice import learn_signal
-        items = []
+        read = []
         with click.progressbar(
             list(zip(files, sigs, strict=True)),
             label=f"reading {len(files)} paths",
@@ -236,12 +235,20 @@ def ingest(
             hidden=len(files) < 2,
         ) as bar:
             for path, signal in bar:
-                trajectory, u = _read_one(path, signal, m, learn)
-                source = str(path)
-                if learn_signal is not None:
-                    u = learn_signal(lib, trajectory, machine_name, iterations=iterations)
-                    source = f"{path} (learned by ILC, {iterations} iterations)"
-                items.append((trajectory, u, name or path.stem, source))
+                read.append((path, *_read_one(path, signal, m, learn)))
+        if learn:
+            from primlib.splice import learn_signal
+
+            with click.progressbar(
+                read, label="learning by ILC", file=sys.stderr, hidden=len(read) < 2
+            ) as bar:
+                read = [
+                    (path, traj, learn_signal(lib, traj, machine_name, iterations=iterations))
+                    for path, traj, _ in bar
+                ]
+    how = f" (learned by ILC, {iterations} iterations)" if learn else ""
+    items = [(traj, u, name or path.stem, f"{path}{how}") for path, traj, u in read]
+    with _open(ctx) as lib:
         ids = lib.add_many(items, machine_name)
     for pid, (trajectory, _, nm, _) in zip(ids, items, strict=True):
         click.echo(f"{pid:>6}  {nm}  ({trajectory.duration:g} s)")
