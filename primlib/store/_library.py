@@ -195,7 +195,7 @@ class Library:
     def _open_error(self, exc: Exception) -> PrimlibError:
         name = self._path
         msg = str(exc)
-        if "lock" in msg.lower():
+        if "could not set lock" in msg.lower() or "conflicting lock" in msg.lower():
             return LibraryBusyError(
                 f"{name} is busy: another process has it open; try again when it finishes"
             )
@@ -287,7 +287,15 @@ class Library:
         except BaseException:
             con.rollback()
             raise
-        con.commit()
+        try:
+            con.commit()
+        except BaseException:
+            # a failed commit (disk full, I/O) must not leave the connection mid-transaction
+            try:
+                con.rollback()
+            except duckdb.Error:
+                pass
+            raise
 
     def close(self) -> None:
         """Close the file (releasing its lock). Closing twice is harmless."""
