@@ -71,6 +71,9 @@ def _register() -> None:
 _COMMAND_MODULES: list[str] = [
     "_reproduce",
     "_library",
+    "_learn",
+    "_reproduce_pdccilc",
+    "_reproduce_cee",
 ]
 
 
