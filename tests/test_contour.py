@@ -272,3 +272,20 @@ def test_bad_input():
         ellipse_contour_error(2, 2, ref)
     with pytest.raises(InputError, match="semi axes: expected two positive numbers"):
         ellipse_contour_error(-1, 2, ref)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_nurbs_trajectory_path(method):
+    from primlib.nurbs import Trajectory
+
+    dt = 0.01
+    t = np.arange(0, 2 * np.pi + dt / 2, dt)
+    traj = Trajectory.from_samples(np.c_[10 * np.sin(t), 5 * np.cos(t)], dt, tol=1e-7)
+    rng = np.random.default_rng(9)
+    tq = np.linspace(0.2, traj.duration - 0.2, 300)
+    actual = traj.at(tq / traj.duration) + rng.normal(scale=0.01, size=(300, 2))
+    e = contour_error(traj, tq, actual, method)
+    exact = ellipse_contour_error(10, 5, actual)
+    # the fit is within 1e-7 of the ellipse; linear/circular add their own O(e^2) terms
+    tol = {"exact": 1e-6, "circular": 1e-5, "linear": 5e-4}[method]
+    np.testing.assert_allclose(e, exact, atol=tol)
