@@ -113,7 +113,9 @@ def test_ingest_with_signal_stores_what_the_files_hold(tmp_path, db):
 
 def test_ingest_many_reads_sibling_signals(tmp_path, db):
     files = [write_pair(tmp_path, f"p{k}", k) for k in range(4)]
-    res = run(db, "ingest", *[f[0] for f in files], "-m", "xyz")
+    # as from `primlib ingest folder/*.csv`: the signal files are recognised as signals
+    everything = sorted(str(x) for f in files for x in f[:2])
+    res = run(db, "ingest", *everything, "-m", "xyz")
     assert res.exit_code == 0, res.output
     assert "added 4 primitives" in res.stdout
     with Library(db, read_only=True) as lib:

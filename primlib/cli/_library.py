@@ -123,6 +123,20 @@ def _signal_for(path: Path) -> Path:
     return path.with_name(f"{path.stem}.signal.csv")
 
 
+def _without_sibling_signals(paths: tuple[str, ...]) -> tuple[str, ...]:
+    # `primlib ingest folder/*.csv` names glyph.csv and glyph.signal.csv: the second is the
+    # first one's signal, not a path.
+    given = {Path(p).resolve() for p in paths}
+    return tuple(
+        p
+        for p in paths
+        if not (
+            Path(p).name.endswith(".signal.csv")
+            and Path(p).with_name(Path(p).name[: -len(".signal.csv")] + ".csv").resolve() in given
+        )
+    )
+
+
 def _read_one(
     path: Path, signal: Path | None, m: Any, learn: bool
 ) -> tuple[Any, np.ndarray | None]:
@@ -202,17 +216,21 @@ def ingest(
 ) -> None:
     """Store paths (CSV: t,x,y[,z]) with their learned signals as primitives of a machine.
 
-    Every file is read, checked and fitted before anything is written; then all of them go
+    Without --signal, a PATH named <stem>.signal.csv whose <stem>.csv is also
+    given is taken as that path's signal, so a folder's *.csv can be ingested at
+    once. Every file is read, checked and fitted before anything is written; then all of them go
     in as one transaction, so a single bad file leaves the library unchanged. Paths must be
     sampled at the machine's dt; each signal must lie on its path's time grid.
 
     \b
     primlib ingest glyph.csv --signal glyph-u.csv --machine xyz
-    primlib ingest data/paths/*.csv --machine xyz     # each with <stem>.signal.csv
+    primlib ingest data/library/*.csv --machine xyz   # each with <stem>.signal.csv
     primlib ingest glyph.csv --learn --machine xyz    # learn the signal by ILC
     """
     if learn and signals:
         raise click.UsageError("--learn and --signal are mutually exclusive")
+    if not signals:
+        paths = _without_sibling_signals(paths)
     if signals and len(signals) != len(paths):
         raise click.UsageError(
             f"got {len(signals)} --signal for {len(paths)} paths; give one per path, or none "
