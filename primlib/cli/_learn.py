@@ -18,7 +18,7 @@ import numpy as np
 from primlib._errors import InputError, NoMatchError
 from primlib.cli import main
 
-__all__ = ["learn", "run_learning"]
+__all__ = ["learn", "example", "run_learning"]
 
 
 def run_learning(
@@ -246,3 +246,77 @@ def learn(
     if plot_file is not None:
         click.echo(f"wrote {plot_file}", err=True)
     sys.stdout.flush()
+
+
+@main.command("example")
+@click.option(
+    "--data",
+    "data_dir",
+    default="data",
+    show_default=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="The repository's data folder (machines/, library/, paths/).",
+)
+@click.option(
+    "--path",
+    "path_name",
+    default="glyph-chain",
+    show_default=True,
+    help="Which example path of DATA/paths to learn.",
+)
+@click.option("--iterations", "-n", default=8, show_default=True, type=click.IntRange(min=1))
+@click.option(
+    "--plot",
+    "plot_file",
+    default="warm-start.png",
+    show_default=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Figure to write.",
+)
+@click.pass_context
+def example(
+    ctx: click.Context, data_dir: Path, path_name: str, iterations: int, plot_file: Path
+) -> None:
+    """Build the example library from DATA and learn an example path from its warm start.
+
+    Adds the XYZ machine of the primitive-matching paper and the bundled primitives
+    (DATA/library/<stem>.csv with <stem>.signal.csv) to the library when they are not there
+    yet, then runs ``primlib learn DATA/paths/PATH.csv --machine xyz --plot FIG``: match,
+    warm start, ILC, and a figure of the path's segments, u0 with its junction bands, and
+    the RMS per iteration warm vs cold.
+    """
+    from primlib.io import read_signal_csv
+    from primlib.nurbs import Trajectory
+    from primlib.plant import Machine
+    from primlib.store import Library
+
+    machine_file = data_dir / "machines" / "xyz.json"
+    lib_dir = data_dir / "library"
+    path = data_dir / "paths" / f"{path_name}.csv"
+    for f in (machine_file, lib_dir, path):
+        if not f.exists():
+            raise InputError(
+                f"{f}: expected the example data (run from a primlib clone, or "
+                f"pass --data), got no such file"
+            )
+    machine = Machine.from_json(machine_file)
+    files = sorted(f for f in lib_dir.glob("*.csv") if not f.name.endswith(".signal.csv"))
+    db = ctx.find_root().obj["db"]
+    with Library(db) as lib:
+        if machine.name not in lib.machines():
+            lib.add_machine(machine)
+        if not lib.primitives(machine.name):
+            items = []
+            for f in files:
+                traj = Trajectory.from_csv(f)
+                t = traj.times(machine.dt)
+                _, u = read_signal_csv(f.with_name(f"{f.stem}.signal.csv"), t=t)
+                items.append((traj, u, f.stem, str(f)))
+            lib.add_many(items, machine.name)
+            click.echo(
+                f"added {len(items)} example primitives to machine '{machine.name}' in {db}",
+                err=True,
+            )
+    ctx.invoke(
+        learn, path=path, machine_name=machine.name, iterations=iterations, plot_file=plot_file
+    )

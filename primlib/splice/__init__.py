@@ -13,7 +13,10 @@ scale k; each primitive's converged input is
    transition bands at the junctions, the paper's three cases overlap / gap / continuous
    (:func:`splice`); unmatched segments get the nominal-model inverse.
 
-:func:`warm_start` does all of it from a library; :func:`learn_signal` runs ILC from it.
+:func:`warm_start` does all of it from a library, by default on the machine model refined
+on the matched primitives' own (input, path) pairs (:func:`refine_machine`: the stored
+signals were learned on the real machine, so they tell how it differs from its model);
+:func:`learn_signal` runs ILC from it.
 
 Which time scaling is used when: a piece with k = 1 on the grid uses the stored input as it
 is; otherwise "auto" uses eq. (20) when the primitive is stored at as many distinct
@@ -26,6 +29,7 @@ duration / new duration; signals and outputs are deviations from the path's firs
 """
 
 from primlib.splice._continuous import continuous_output, resample_zoh
+from primlib.splice._refine import RefinedModel, refine_machine
 from primlib.splice._splice import METHODS, Band, SpliceResult, StoredSignal, splice
 from primlib.splice._transform import (
     derivative_orders,
@@ -62,4 +66,6 @@ __all__ = [
     "stored_signals",
     "continuous_output",
     "resample_zoh",
+    "refine_machine",
+    "RefinedModel",
 ]

@@ -46,6 +46,8 @@ class WarmStart:
     methods : tuple of str
         Per segment: "identity", "model", "direct" (eq. (20)) or "inverse".
     notes : tuple of str
+    model : RefinedModel or None
+        The model refined on the matched primitives (None when not refined).
     """
 
     u: np.ndarray
@@ -56,6 +58,7 @@ class WarmStart:
     sources: tuple[str, ...]
     methods: tuple[str, ...]
     notes: tuple[str, ...] = field(default_factory=tuple)
+    model: Any = None
 
     @property
     def n_unmatched(self) -> int:
@@ -164,6 +167,7 @@ def warm_start(
     *,
     band: float | None = None,
     method: str = "auto",
+    refine: bool = True,
     match=None,
     **kw,
 ):
@@ -182,6 +186,12 @@ def warm_start(
         Transition band width in seconds (default 8 dt).
     method : {"auto", "model", "direct"}
         Time-scaling method, see :func:`primlib.splice.splice`.
+    refine : bool
+        Refine the machine model on the matched primitives' own (input, path) pairs before
+        transforming (:func:`primlib.splice.refine_machine`): the stored signals were
+        learned on the real machine, so they say how it differs from its model; the time
+        scale and axis mixing then use the refined model. Unmatched segments still get the
+        nominal-model inverse.
     match : Match, optional
         A match already computed for this path and machine (skips matching).
     **kw
@@ -211,7 +221,31 @@ def warm_start(
     ids = sorted({s.primitive for s in match.segments if s.primitive is not None})
     stored = stored_signals(library.bank(machine), ids) if ids else {}
     pts = traj.sample(m.dt)
-    res = splice(m, pts, traj.duration, match.segments, stored, band=band, method=method)
+    model = None
+    used = m
+    if refine and stored and not m.feedback:
+        from primlib.splice._refine import refine_machine
+
+        pairs = [(s.signal, s.points - s.points[0]) for s in stored.values()]
+        model = refine_machine(m, pairs)
+        used = model.machine
+    res = splice(
+        used,
+        pts,
+        traj.duration,
+        match.segments,
+        stored,
+        band=band,
+        method=method,
+        inverse_machine=m,
+    )
+    notes = res.notes
+    if model is not None:
+        th = ", ".join(
+            f"{a}: gain {g:.4g}, time scale {c:.4g}, lag {tau * 1e3:.3g} ms"
+            for a, (g, c, tau) in zip(m.axes, model.theta, strict=True)
+        )
+        notes = (*notes, f"model refined on {len(stored)} stored primitive(s): {th}")
     t = np.arange(pts.shape[0]) * m.dt
     return WarmStart(
         u=res.u,
@@ -221,7 +255,8 @@ def warm_start(
         sample_segment=res.sample_segment,
         sources=res.sources,
         methods=res.methods,
-        notes=res.notes,
+        notes=notes,
+        model=model,
     )
 
 

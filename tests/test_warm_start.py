@@ -1,0 +1,149 @@
+"""warm_start / learn_signal through a real (in-memory) Library and the real matcher."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from primlib import NoMatchError
+from primlib.nurbs import Trajectory
+from primlib.plant import Machine, invert
+from primlib.splice import (
+    WarmStart,
+    find_versions,
+    learn_signal,
+    refine_machine,
+    warm_start,
+)
+from primlib.store import Library
+
+ROOT = Path(__file__).resolve().parents[1]
+DT = 0.005
+
+
+def _minjerk(r):
+    return 10 * r**3 - 15 * r**4 + 6 * r**5
+
+
+def _arc(T):
+    s = _minjerk(np.arange(round(T / DT) + 1) * DT / T)
+    return np.stack([10 * np.sin(np.pi / 2 * s), 10 * (1 - np.cos(np.pi / 2 * s)), 3 * s], 1)
+
+
+def _wave(T):
+    s = _minjerk(np.arange(round(T / DT) + 1) * DT / T)
+    return np.stack([12 * s, 3 * np.sin(2 * np.pi * s), -2 * s], 1)
+
+
+@pytest.fixture(scope="module")
+def xyz():
+    return Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+
+
+def _library(machine, shapes):
+    lib = Library()
+    lib.add_machine(machine)
+    items = []
+    for name, pts in shapes:
+        traj = Trajectory.from_samples(pts, DT)
+        ref = traj.sample(DT)
+        items.append((traj, invert(machine, ref - ref[0]), name, "test"))
+    lib.add_many(items, machine.name)
+    return lib
+
+
+@pytest.fixture(scope="module")
+def lib(xyz):
+    return _library(xyz, [("arc", _arc(1.0)), ("wave", _wave(1.2))])
+
+
+def test_warm_start_of_a_stored_primitive_returns_its_signal(lib):
+    pid = lib.primitives("xyz")[0].id
+    prim = lib.get(pid)
+    ws = lib.warm_start(prim.trajectory, machine="xyz", eps=0.01)
+    assert isinstance(ws, WarmStart)
+    assert ws.match.segments[0].primitive == pid
+    # (a last unmatched sliver of the matcher's final search step, if any, is absorbed)
+    assert ws.methods == ("identity",)
+    # the matcher's rotation is the identity to rounding: the stored signal comes back
+    np.testing.assert_allclose(ws.u, prim.signal, atol=1e-9 * np.abs(prim.signal).max())
+    np.testing.assert_allclose(ws.t, prim.times())
+
+
+def test_warm_start_of_new_path_from_two_pieces(lib, xyz):
+    # the arc 1.25x slower and rotated about z, then the wave, at rest at the junction
+    rz = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])
+    a = _arc(1.25) @ rz.T
+    b = _wave(1.2)
+    path = np.vstack([a, (b + a[-1] - b[0])[1:]])
+    traj = Trajectory.from_samples(path, DT)
+    ws = warm_start(lib, traj, "xyz", 0.005)
+    n = round(traj.duration / DT) + 1
+    assert ws.u.shape == (n, 3) and ws.t.shape == (n,)
+    assert len(ws.bands) == len(ws.match.segments) - 1
+    assert len(ws.sources) == len(ws.match.segments)
+    ref = traj.sample(DT)
+    ref = ref - ref[0]
+    warm = np.sqrt(np.mean((xyz.simulate(ws.u) - ref) ** 2))
+    cold = np.sqrt(np.mean(ref**2))
+    # on the nominal machine only the match (eps) and NURBS fits limit the warm start
+    assert warm < cold / 100
+
+
+def test_refine_recovers_a_machine_in_the_family(xyz):
+    true = Machine(
+        "xyz",
+        DT,
+        xyz.axes,
+        {
+            a: (1.1 * num, np.convolve(den * [1.2**2, 1.2, 1.0], [0.01, 1.0]))
+            for a, (num, den) in xyz.plants.items()
+        },
+    )
+    pairs = []
+    for pts in (_arc(1.0), _wave(1.2)):
+        y = pts - pts[0]
+        pairs.append((invert(true, y), y))
+    got = refine_machine(xyz, pairs)
+    # G_θ = g num / den(c s) / (τ s + 1); den(c s) = c s (T c s + 1): g / c = 1.1 / 1.2
+    np.testing.assert_allclose(got.theta[:, 1], 1.2, rtol=1e-4)
+    np.testing.assert_allclose(got.theta[:, 0], 1.1 * 1.2 / 1.2, rtol=1e-3)
+    np.testing.assert_allclose(got.theta[:, 2], 0.01, rtol=1e-3)
+    assert np.all(got.rms_refined < 1e-3 * got.rms_nominal)
+    # nominal pairs: the nominal model comes back
+    nominal = refine_machine(xyz, [(invert(xyz, p - p[0]), p - p[0]) for p in (_arc(1.0),)])
+    np.testing.assert_allclose(nominal.theta[:2], [[1, 1, 0], [1, 1, 0]], atol=1e-4)
+
+
+def test_versions_and_eq20_are_used(xyz):
+    lib = _library(xyz, [("arc", _arc(1.0)), ("arc-slow", _arc(2.0)), ("wave", _wave(1.2))])
+    bank = lib.bank("xyz")
+    assert find_versions(bank, 0) == [1]
+    assert find_versions(bank, 2) == []
+    traj = Trajectory.from_samples(_arc(1.4), DT)
+    ws = warm_start(lib, traj, "xyz", 0.01, refine=False)
+    assert ws.methods == ("direct",)
+    ref = traj.sample(DT)
+    err = np.sqrt(np.mean((xyz.simulate(ws.u) - (ref - ref[0])) ** 2))
+    # eq. (20) is exact in continuous time; on the 5 ms ZOH grid it leaves O(dt^2)
+    assert err < 1e-3 * np.sqrt(np.mean((ref - ref[0]) ** 2))
+
+
+def test_learn_signal_warm_and_cold(lib, xyz):
+    traj = Trajectory.from_samples(_arc(1.1), DT)
+    ref = traj.sample(DT)
+    ref = ref - ref[0]
+    for cold in (False, True):
+        u = learn_signal(lib, traj, "xyz", iterations=3, cold=cold)
+        assert u.shape == ref.shape
+        assert np.sqrt(np.mean((xyz.simulate(u) - ref) ** 2)) < 1e-3
+
+
+def test_warm_start_needs_primitives(xyz):
+    lib = Library()
+    lib.add_machine(xyz)
+    traj = Trajectory.from_samples(_arc(1.0), DT)
+    with pytest.raises(NoMatchError):
+        warm_start(lib, traj, "xyz", 0.01)
