@@ -69,7 +69,7 @@ def plot_cee(study, directory) -> list[Path]:
     written.append(out / "cee-fig4-contour.png")
     fig.savefig(written[-1], dpi=120)
 
-    gain = 50.0
+    gain = 20.0
     fig = Figure(figsize=(6, 4), layout="constrained")
     ax = fig.subplots()
     tip = np.argmax(ref[:, 0])
@@ -77,7 +77,7 @@ def plot_cee(study, directory) -> list[Path]:
     for case, run in study.runs.items():
         mag = _magnified(run, study.true_error[case], gain)
         ax.plot(mag[:, 0], mag[:, 1], lw=1.0, **_STYLE[case], label=_LABEL[case])
-    ax.set_xlim(ref[tip, 0] - 1.0, ref[tip, 0] + 0.5)
+    ax.set_xlim(ref[tip, 0] - 1.5, ref[tip, 0] + 0.5)
     ax.set_ylim(ref[tip, 1] - 2.0, ref[tip, 1] + 2.0)
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
