@@ -25,10 +25,11 @@ N = n - lead inputs per axis: the last ``lead`` samples of a trial's input reach
 error and are left out, so the composite is 2N x 2N (4,800 x 4,800 for the paper's 12 s at
 5 ms).
 
-Largest singular value. ``M`` is never formed: products with M and M^T cost a few FFTs
-(``primlib.plant.toeplitz_operator``) plus O(N) sparse work, and ARPACK's Lanczos
-bidiagonalisation (``scipy.sparse.linalg.svds``, via ``primlib.plant.max_singular_value``)
-needs no gap between the top singular values; power iteration is offered too.
+Largest singular value. ``M`` is never formed: a product with M or M^T costs four real FFTs
+(both axes' Toeplitz blocks in one transform, the Q-filter in another) plus one sparse
+product with S L; ARPACK's Lanczos bidiagonalisation (``scipy.sparse.linalg.svds``, run to
+convergence) needs no gap between the top singular values, which cluster near 1 for a
+learning matrix; power iteration (``primlib.plant.max_singular_value``) is offered too.
 
 Spectral radius, and why primlib trusts it. Without a Q-filter and with the lead equal to the
 relative degree (h[:lead] = 0 on both axes), M is block lower-triangular in sample order:
@@ -50,32 +51,14 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy import linalg
-from scipy.sparse.linalg import LinearOperator, gmres
+from scipy import fft, linalg, sparse
+from scipy.sparse.linalg import LinearOperator, gmres, svds
 
 from primlib._errors import InputError
 from primlib.ilc._ms_law import MasterSlaveLaw
-from primlib.plant import max_singular_value, toeplitz_operator
+from primlib.plant import max_singular_value
 
 __all__ = ["LiftedMasterSlave", "lifted_master_slave"]
-
-
-def _shift_down(x: np.ndarray, k: int) -> np.ndarray:
-    """out[t] = x[t - k] along axis 1 (zeros first)."""
-    if k == 0:
-        return x
-    out = np.zeros_like(x)
-    out[:, k:] = x[:, :-k]
-    return out
-
-
-def _shift_up(x: np.ndarray, k: int) -> np.ndarray:
-    """out[t] = x[t + k] along axis 1 (zeros last)."""
-    if k == 0:
-        return x
-    out = np.zeros_like(x)
-    out[:, :-k] = x[:, k:]
-    return out
 
 
 @dataclass(frozen=True)
@@ -105,8 +88,43 @@ class LiftedMasterSlave:
         return self.law.n - self.law.lead
 
     @cached_property
-    def _g(self) -> list[LinearOperator]:
-        return [toeplitz_operator(self.h[:, i]) for i in range(2)]
+    def _spectra(self):
+        """Plant FFT length and spectra (2, m); Q FFT length and kernel spectrum, or None."""
+        n = self.law.n
+        m = fft.next_fast_len(2 * n, real=True)
+        hs = fft.rfft(self.h.T, n=m, axis=1)
+        kern = self.law.q_kernel
+        if kern is None:
+            return m, hs, 0, None
+        half = kern.size // 2
+        mq = fft.next_fast_len(n + half + 1, real=True)
+        c = np.zeros(mq)
+        c[: half + 1] = kern[half:]
+        if half:
+            c[mq - half :] = kern[:half]  # centred: circular = 'same' with zero padding
+        return m, hs, mq, fft.rfft(c).real  # symmetric kernel: real spectrum
+
+    @cached_property
+    def _sl(self):
+        """The lead shift times the learning functions, S L, sparse (2n, 2n), and its
+        transpose: own-axis terms a e[k] + b e[k-1] (eqs. 16-19), coupling
+        n_i[k] (a_eps[k] n_j[k] e_j[k] + b_eps[k] n_j[k-1] e_j[k-1])."""
+        law = self.law
+        n = law.n
+        blocks = [[None, None], [None, None]]
+        for i in range(2):
+            blocks[i][i] = sparse.diags([law.a[:, i], law.b[1:, i]], [0, -1])
+        if law.coupled:
+            nrm = law.normal
+            cmat = sparse.diags([law.a[:, 2], law.b[1:, 2]], [0, -1])
+            for i in range(2):
+                for j in range(2):
+                    coupling = sparse.diags(nrm[:, i]) @ cmat @ sparse.diags(nrm[:, j])
+                    blocks[i][j] = coupling if blocks[i][j] is None else blocks[i][j] + coupling
+        lmat = sparse.bmat(blocks, format="csr")
+        shift = sparse.block_diag([sparse.eye(n, k=law.lead)] * 2, format="csr")
+        sl = (shift @ lmat).tocsr()
+        return sl, sl.T.tocsr()
 
     def _pad(self, x: np.ndarray) -> np.ndarray:
         """(2, N, k) learnable samples -> (2, n, k) full trial with the tail at zero."""
@@ -115,52 +133,37 @@ class LiftedMasterSlave:
         return out
 
     def _apply_g(self, x: np.ndarray, transpose: bool = False) -> np.ndarray:
-        ops = [g.T if transpose else g for g in self._g]
-        return np.stack([ops[i].matmat(x[i]) for i in range(2)])
-
-    def _apply_l(self, e: np.ndarray) -> np.ndarray:
-        """Learning functions and coupling, then the lead shift (eqs. 16-19), on (2, n, k)."""
-        law = self.law
-        a = law.a.T[:, :, None]
-        b = law.b.T[:, :, None]
-        out = a[:2] * e + b[:2] * _shift_down(e, 1)
-        if law.coupled:
-            nrm = law.normal.T[:, :, None]
-            eps = np.sum(nrm * e, axis=0, keepdims=True)  # eq. (1)
-            out += nrm * (a[2:] * eps + b[2:] * _shift_down(eps, 1))
-        return _shift_up(out, law.lead)
-
-    def _apply_l_t(self, w: np.ndarray) -> np.ndarray:
-        law = self.law
-        a = law.a.T[:, :, None]
-        b = law.b.T[:, :, None]
-        w = _shift_down(w, law.lead)
-        out = a[:2] * w + _shift_up(b[:2] * w, 1)
-        if law.coupled:
-            nrm = law.normal.T[:, :, None]
-            p = np.sum(nrm * w, axis=0, keepdims=True)
-            out += nrm * (a[2:] * p + _shift_up(b[2:] * p, 1))
-        return out
+        # (2, n, k): one causal Toeplitz product per axis through a zero-padded real FFT
+        m, hs, _, _ = self._spectra
+        spec = np.conj(hs) if transpose else hs
+        y = fft.irfft(fft.rfft(x, n=m, axis=1) * spec[:, :, None], n=m, axis=1)
+        return y[:, : x.shape[1]]
 
     def _apply_q(self, x: np.ndarray) -> np.ndarray:
-        # (2, n, k): time is axis 1; Q is symmetric, so it is its own transpose
-        if self.law.q_kernel is None:
+        # (2, n, k). Q = W K W (see MasterSlaveLaw.q) is symmetric: its own transpose.
+        _, _, mq, ks = self._spectra
+        if ks is None:
             return x
-        return np.moveaxis(self.law.q(np.moveaxis(x, 1, 0)), 0, 1)
+        w = self.law.q_weight[None, :, None]
+        y = fft.irfft(fft.rfft(w * x, n=mq, axis=1) * ks[None, :, None], n=mq, axis=1)
+        return w * y[:, : x.shape[1]]
 
-    _apply_q_t = _apply_q
+    def _apply_sl(self, x: np.ndarray, transpose: bool = False) -> np.ndarray:
+        sl, slt = self._sl
+        k = x.shape[2]
+        return ((slt if transpose else sl) @ x.reshape(2 * self.law.n, k)).reshape(x.shape)
 
     # ------------------------------------------------------------------ the operator M
     def _matmat(self, v: np.ndarray) -> np.ndarray:
         nl = self.n_learn
         x = self._pad(np.asarray(v, dtype=float).reshape(2, nl, -1))
-        y = self._apply_q(x - self._apply_l(self._apply_g(x)))  # eq. (28)
+        y = self._apply_q(x - self._apply_sl(self._apply_g(x)))  # eq. (28)
         return y[:, :nl].reshape(2 * nl, -1)
 
     def _rmatmat(self, w: np.ndarray) -> np.ndarray:
         nl = self.n_learn
-        z = self._apply_q_t(self._pad(np.asarray(w, dtype=float).reshape(2, nl, -1)))
-        y = z - self._apply_g(self._apply_l_t(z), transpose=True)
+        z = self._apply_q(self._pad(np.asarray(w, dtype=float).reshape(2, nl, -1)))
+        y = z - self._apply_g(self._apply_sl(z, transpose=True), transpose=True)
         return y[:, :nl].reshape(2 * nl, -1)
 
     @cached_property
@@ -179,40 +182,26 @@ class LiftedMasterSlave:
     def dense(self) -> np.ndarray:
         """``M`` as a dense array, shape (2N, 2N), assembled from dense factors.
 
-        Independent of the FFT operator (dense Toeplitz, dense L, dense Q), so tests and
-        the benchmark can check one against the other. O(N^3): small N, or a baseline.
+        Independent of the FFT products (dense Toeplitz and Q; the same sparse S L), so
+        tests and the benchmark can check one against the other. O(N^3): small N, or a baseline.
         """
         law = self.law
-        n, lead, nl = law.n, law.lead, self.n_learn
-        g = linalg.block_diag(*[linalg.toeplitz(self.h[:, i], np.zeros(n)) for i in range(2)])
-        lmat = np.zeros((2 * n, 2 * n))
-        for i in range(2):
-            lmat[i * n : (i + 1) * n, i * n : (i + 1) * n] = np.diag(law.a[:, i]) + np.diag(
-                law.b[1:, i], -1
-            )
-        if law.coupled:
-            nrm = law.normal
-            cmat = np.diag(law.a[:, 2]) + np.diag(law.b[1:, 2], -1)
-            for i in range(2):
-                for j in range(2):
-                    # n_i[k] (a_eps[k] n_j[k] e_j[k] + b_eps[k] n_j[k-1] e_j[k-1])
-                    lmat[i * n : (i + 1) * n, j * n : (j + 1) * n] += (
-                        nrm[:, i, None] * cmat * nrm[None, :, j]
-                    )
-        shift = linalg.block_diag(*[np.eye(n, k=lead)] * 2)
-        if law.q_kernel is None:
-            q = np.eye(2 * n)
-        else:
-            half = law.q_kernel.size // 2
-            col = np.zeros(n)
-            col[: min(half + 1, n)] = law.q_kernel[half : half + n]
-            k = linalg.toeplitz(col)
-            w = law.q_weight
-            qa = w[:, None] * k * w[None, :]
-            q = linalg.block_diag(qa, qa)
-        m_full = q @ (np.eye(2 * n) - shift @ lmat @ g)
+        n, nl = law.n, self.n_learn
+        sl = self._sl[0].tocsc()  # sparse, so S L G costs O(nnz n)
+        a_mat = np.eye(2 * n)
+        for j in range(2):
+            gj = linalg.toeplitz(self.h[:, j], np.zeros(n))
+            a_mat[:, j * n : (j + 1) * n] -= sl[:, j * n : (j + 1) * n] @ gj
         keep = np.concatenate([np.arange(nl), n + np.arange(nl)])
-        return m_full[np.ix_(keep, keep)]
+        if law.q_kernel is None:
+            return a_mat[np.ix_(keep, keep)]
+        half = law.q_kernel.size // 2
+        col = np.zeros(n)
+        col[: min(half + 1, n)] = law.q_kernel[half : half + n]
+        w = law.q_weight
+        qa = w[:, None] * linalg.toeplitz(col) * w[None, :]
+        m_full = np.vstack([qa[:nl] @ a_mat[:n], qa[:nl] @ a_mat[n:]])
+        return m_full[:, keep]
 
     def blocks(self) -> tuple[np.ndarray, np.ndarray]:
         """Dense ``(M_x, M_y)`` of eq. (28), each shape (N, 2N): the rows of each axis."""
@@ -223,13 +212,18 @@ class LiftedMasterSlave:
     @cached_property
     def offset(self) -> np.ndarray:
         """``N = Q S L e_0`` of eq. (28), shape (2N,)."""
-        x = self._apply_q(self._apply_l(self.e0.T[:, :, None]))
+        x = self._apply_q(self._apply_sl(self.e0.T[:, :, None]))
         return x[:, : self.n_learn, 0].reshape(-1)
 
     # ------------------------------------------------------------------ figures of merit
     def max_singular_value(self, method: str = "svds", tol: float = 1e-10) -> float:
-        """sigma_max(M), eq. (30): < 1 guarantees monotonic convergence in the 2-norm."""
-        return max_singular_value(self.operator, method=method, tol=tol)
+        """sigma_max(M), eq. (30): < 1 guarantees monotonic convergence in the 2-norm.
+
+        ``"svds"``: ARPACK's Lanczos bidiagonalisation run to convergence (the top singular
+        values of a learning matrix often cluster near 1: Lanczos copes, power iteration
+        crawls); ``"power"``: power iteration (``primlib.plant.max_singular_value``).
+        """
+        return _sigma_max(self.operator, method, tol)
 
     @property
     def triangular(self) -> bool:
@@ -273,7 +267,7 @@ class LiftedMasterSlave:
             if k < 1:
                 raise InputError(f"powers: expected integers >= 1, got {powers!r}")
             mk = _power(op, int(k))
-            best = min(best, max_singular_value(mk, tol=1e-8) ** (1.0 / k))
+            best = min(best, _sigma_max(mk, tol=1e-8) ** (1.0 / k))
         return float(best), False
 
     def asymptotic(self, tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray]:
@@ -302,6 +296,13 @@ class LiftedMasterSlave:
         u = self._pad(x.reshape(2, self.n_learn, 1))
         e = self.e0 - self._apply_g(u)[:, :, 0].T  # eq. (32)
         return u[:, :, 0].T, e
+
+
+def _sigma_max(op: LinearOperator, method: str = "svds", tol: float = 1e-10) -> float:
+    if method != "svds" or min(op.shape) <= 2:
+        return max_singular_value(op, method=method, tol=tol)
+    v0 = np.random.default_rng(0).standard_normal(op.shape[1])
+    return float(svds(op, k=1, tol=tol, v0=v0, return_singular_vectors=False)[0])
 
 
 def _power(op: LinearOperator, k: int) -> LinearOperator:
