@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -41,13 +42,22 @@ def sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-@pytest.fixture
-def db(tmp_path) -> Path:
-    """A library with the XYZ machine and one primitive."""
-    db = tmp_path / "lib.duckdb"
+@pytest.fixture(scope="module")
+def template(tmp_path_factory) -> Path:
+    """A library with the XYZ machine and one primitive, built once per module."""
+    folder = tmp_path_factory.mktemp("template")
+    db = folder / "lib.duckdb"
     assert run(db, "machine", "add", DATA / "xyz.json").exit_code == 0
-    path, signal, _ = write_pair(tmp_path, "seed", 9)
+    path, _, _ = write_pair(folder, "seed", 9)
     assert run(db, "ingest", path, "--machine", "xyz").exit_code == 0
+    return db
+
+
+@pytest.fixture
+def db(tmp_path, template) -> Path:
+    """A fresh copy of the template library (closed files copy safely)."""
+    db = tmp_path / "lib.duckdb"
+    shutil.copyfile(template, db)
     return db
 
 

@@ -61,7 +61,7 @@ def lib():
 
 
 # ---------------------------------------------------------------------------- round trips
-@settings(max_examples=20, deadline=None)
+@settings(max_examples=12, deadline=None)
 @given(
     seeds=st.lists(st.integers(0, 2**31), min_size=1, max_size=4),
     steps=st.integers(8, 120),
