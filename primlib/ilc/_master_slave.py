@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from primlib._errors import InputError
+from primlib.ilc._check import ConvergenceWarning
 from primlib.ilc._lifted import lifted_master_slave
 from primlib.ilc._ms_law import MasterSlaveGains, _check_reference, master_slave_law
 
@@ -142,7 +143,7 @@ def learn_master_slave(
     tol : float, optional
         Stop once the RMS estimated contour error is at most ``tol`` (> 0).
     check : bool
-        Run the lifted check first (a RuntimeWarning when monotonic convergence is not
+        Run the lifted check first (a ConvergenceWarning when monotonic convergence is not
         certified, sigma_max >= 1).
 
     Returns
@@ -208,7 +209,7 @@ def learn_master_slave(
             warnings.warn(
                 f"{ms.law}: monotonic convergence is not certified on the model "
                 f"(sigma_max = {result_check.max_singular_value:.4f} >= 1, eq. 30)",
-                RuntimeWarning,
+                ConvergenceWarning,
                 stacklevel=2,
             )
 

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from primlib._errors import InputError
+from primlib.ilc._check import ConvergenceWarning
 from primlib.ilc._lifted import lifted_master_slave
 from primlib.ilc._master_slave import learn_master_slave
 from primlib.ilc._ms_law import master_slave_law
@@ -177,7 +178,7 @@ def pdccilc_study(
         for law in laws:
             name = LAW_NAMES[law]
             with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)  # reported below instead
+                warnings.simplefilter("ignore", ConvergenceWarning)  # reported below instead
                 res = learn_master_slave(
                     machine, r, law=law, q_cutoff=q_cutoff, iterations=iterations, check=False
                 )
