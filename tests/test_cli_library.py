@@ -103,6 +103,16 @@ def test_machine_add_replace(tmp_path):
         assert lib.machine("xyz").plants["x"][0].tolist() == [1.5]
 
 
+def test_machine_remove(db):
+    res = run(db, "machine", "remove", "xyz")
+    assert res.exit_code == 2 and "has 1 primitives" in res.stderr
+    assert count(db) == 1
+    res = run(db, "machine", "remove", "xyz", "--with-primitives")
+    assert res.exit_code == 0 and "removed machine 'xyz' and its 1 primitives" in res.stdout
+    with Library(db, read_only=True) as lib:
+        assert lib.machines() == [] and lib.primitives() == []
+
+
 def test_ingest_with_signal_stores_what_the_files_hold(tmp_path, db):
     path, _, _ = write_pair(tmp_path, "glyph", 1)
     _, other_signal, u = write_pair(tmp_path, "other", 2)

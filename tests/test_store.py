@@ -297,6 +297,19 @@ def test_machines_add_replace_and_lookup(lib):
     ]
 
 
+def test_remove_machine_keeps_primitives_unless_told(lib):
+    lib.add_machine(xy())
+    pid = lib.add(curve(0), signal_for(curve(0)), machine="xyz")
+    with pytest.raises(InputError, match=r"machine 'xyz' has 1 primitives; remove them with it"):
+        lib.remove_machine("xyz")
+    assert lib.info(pid).machine == "xyz"
+    assert lib.remove_machine("xy-pdccilc") == 0
+    assert lib.remove_machine("xyz", primitives=True) == 1
+    assert lib.machines() == [] and lib.primitives() == []
+    with pytest.raises(NotFoundError, match=r"unknown machine 'xyz'; the library has: no machines"):
+        lib.remove_machine("xyz")
+
+
 def test_machine_json_is_validated_by_machine(lib):
     d = xyz().to_dict()
     d["plants"]["x"]["den"] = [1.0, -1.0]  # unstable pole at s = 1

@@ -117,6 +117,18 @@ def machine_list(ctx: click.Context, as_json: bool) -> None:
     )
 
 
+@machine.command("remove")
+@click.argument("name")
+@click.option("--with-primitives", is_flag=True, help="Also remove the primitives learned on it.")
+@click.pass_context
+def machine_remove(ctx: click.Context, name: str, with_primitives: bool) -> None:
+    """Remove machine NAME (refused while it has primitives, unless --with-primitives)."""
+    with _open(ctx) as lib:
+        count = lib.remove_machine(name, primitives=with_primitives)
+    extra = f" and its {count} primitives" if count else ""
+    click.echo(f"removed machine '{name}'{extra} from {_db(ctx)}")
+
+
 # ---------------------------------------------------------------------------- ingest
 def _signal_for(path: Path) -> Path:
     # glyph-a.csv -> glyph-a.signal.csv beside it

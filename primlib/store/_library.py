@@ -423,6 +423,37 @@ class Library:
         self._machines_cache.pop(name, None)
         return status
 
+    def remove_machine(self, name: str, primitives: bool = False) -> int:
+        """Delete a machine, and with ``primitives=True`` its primitives too (one transaction).
+
+        Returns
+        -------
+        int
+            The number of primitives removed with it.
+
+        Raises
+        ------
+        NotFoundError
+            Unknown machine.
+        InputError
+            The machine has primitives and ``primitives`` is False.
+        """
+        self._machine_row(name)
+        with self._transaction() as con:
+            count = con.sql(
+                "SELECT count(*) FROM primitives WHERE machine = $n", params={"n": name}
+            ).fetchall()[0][0]
+            if count and not primitives:
+                raise InputError(
+                    f"machine {name!r} has {count} primitives; remove them with it explicitly "
+                    "(primitives=True, or --with-primitives)"
+                )
+            con.execute("DELETE FROM primitives WHERE machine = $n", {"n": name})
+            con.execute("DELETE FROM machines WHERE name = $n", {"n": name})
+        self._machines_cache.pop(name, None)
+        self._bank_cache.pop(name, None)
+        return int(count)
+
     def machine_summaries(self) -> list[dict[str, Any]]:
         """One dict per machine: name, kind, dt, axes, primitives (count), added (UTC)."""
         rows = (
