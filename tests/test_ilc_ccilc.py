@@ -159,6 +159,21 @@ def test_position_domain_survives_a_resting_or_reversing_master(path):
     np.testing.assert_array_equal(law.dw[:, 0], DT)  # the master learns in time
 
 
+def test_regularised_position_domain_learns_where_the_raw_one_blows_up(paper_machine):
+    # floor -> 0 is the paper's 1 / dx: gains of ~kd / 1e-5 at the semicircle's ends make the
+    # unfiltered PDILC blow up within 20 trials; the regularised domain keeps learning
+    r = semicircle(801)
+    raw = learn_master_slave(
+        paper_machine, r, law="pdilc", q_cutoff=None, floor=1e-9, iterations=20, check=False
+    )
+    reg = learn_master_slave(
+        paper_machine, r, law="pdilc", q_cutoff=None, floor=0.25, iterations=20, check=False
+    )
+    assert raw.rms_contour[-1] > 5 * raw.rms_contour[0]
+    assert reg.rms_contour[-1] < 0.6 * reg.rms_contour[0]
+    assert np.all(np.diff(reg.rms_contour) < 0)
+
+
 def test_position_domain_falls_back_to_time_when_the_master_never_moves():
     r = np.column_stack([np.zeros(80), np.linspace(0, 3, 80)])
     pd = master_slave_law(r, DT, "pdccilc")
