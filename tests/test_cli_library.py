@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -349,3 +352,29 @@ def test_help_documents_the_sibling_signal_file():
     res = CliRunner().invoke(main, ["ingest", "--help"])
     assert res.exit_code == 0
     assert "<stem>.signal.csv" in res.stdout and "--learn" in res.stdout
+
+
+def test_a_busy_library_exits_2_with_one_line(tmp_path, db):
+    hold = "import sys\nfrom primlib.store import Library\nlib = Library(sys.argv[1])\n"
+    hold += "print('open', flush=True)\nsys.stdin.read()\nlib.close()\n"
+    root = str(Path(__file__).resolve().parents[1])
+    with subprocess.Popen(
+        [sys.executable, "-c", hold, str(db)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": root},
+    ) as holder:
+        try:
+            assert holder.stdout.readline().strip() == "open"
+            path, _, _ = write_pair(tmp_path, "g", 0)
+            for args in (["list"], ["ingest", path, "-m", "xyz"], ["remove", "1"]):
+                res = run(db, *args)
+                assert res.exit_code == 2, res.output
+                assert res.stderr.strip() == (
+                    f"Error: {db} is busy: another process has it open; try again when it finishes"
+                )
+        finally:
+            holder.stdin.close()
+            holder.wait(timeout=30)
+    assert count(db) == 1
