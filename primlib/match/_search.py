@@ -55,6 +55,7 @@ __all__ = [
     "IndexSearch",
     "ArcIndex",
     "refine",
+    "clamp",
     "piece_rmsd",
 ]
 
@@ -77,17 +78,14 @@ class SearchOptions:
         Seeds refined per query (distinct basins, best first).
     refine_points : int
         Uniform-time points used by the continuous refinement.
-    confirm_max : int
-        Cap on the confirmation points (one per path sample in the segment, at least 16).
     """
 
     mode: str = "full"
     time_scale: tuple[float, float] = (0.25, 4.0)
     grid_points: int = 16
     scale_ratio: float = 1.1
-    seeds: int = 4
+    seeds: int = 3
     refine_points: int = 64
-    confirm_max: int = 512
 
 
 @dataclass(frozen=True)
@@ -115,9 +113,9 @@ class PathPiece:
         n = self.n
         return cubic_at(self.points, 0, n, np.asarray(v, dtype=float) * (n - 1))
 
-    def confirm_points(self, a: float, b: float, cap: int) -> int:
-        """Points of the dense check: one per path sample in [a, b], 16 to ``cap``."""
-        return int(np.clip(round((b - a) * (self.n - 1)) + 1, 16, cap))
+    def confirm_points(self, a: float, b: float) -> int:
+        """Points of the check: one per path sample in [a, b] (cuts lie on samples), ≥ 16."""
+        return int(max(round((b - a) * (self.n - 1)) + 1, 16))
 
 
 def _prim_at(bank: BankArrays, i: int, x: np.ndarray) -> np.ndarray:
@@ -133,6 +131,36 @@ def piece_rmsd(
     return kabsch(p, q, mode=mode)
 
 
+def _qp2(h: np.ndarray, g: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarray):
+    """Minimise ½δᵀHδ − gᵀδ subject to A(z + δ) ≤ b, for 2 unknowns (H positive definite).
+
+    Convex, so the optimum is the unconstrained minimiser, the minimiser on one constraint
+    line, or a vertex of two: try them all and keep the best feasible one.
+    """
+    slack = b - a @ z
+    cands = [np.linalg.solve(h, g)]
+    for i in range(len(b)):
+        ai = a[i]
+        # on the line ai·δ = slack_i: δ = δ_p + t·n, n ⟂ ai
+        nrm = ai @ ai
+        dp = ai * slack[i] / nrm
+        nv = np.array([-ai[1], ai[0]])
+        den = nv @ h @ nv
+        t = (nv @ (g - h @ dp)) / den if den > 0 else 0.0
+        cands.append(dp + t * nv)
+        for j in range(i + 1, len(b)):
+            m = np.array([a[i], a[j]])
+            if abs(np.linalg.det(m)) > 1e-12:
+                cands.append(np.linalg.solve(m, [slack[i], slack[j]]))
+    best, best_f = np.zeros(2), 0.0
+    for d in cands:
+        if np.all(a @ d <= slack + 1e-9 * (1.0 + np.abs(b))):
+            f = 0.5 * d @ h @ d - g @ d
+            if f < best_f:
+                best, best_f = d, f
+    return best
+
+
 def refine(
     bank: BankArrays,
     cand: Candidate,
@@ -142,15 +170,17 @@ def refine(
     opts: SearchOptions,
     target: float = 0.0,
 ) -> Candidate:
-    """Continuous (start, duration) refinement of a seed, bounded to the time-scale range.
+    """Continuous refinement of a seed's start and end, bounded to the time-scale range.
 
-    Variable projection with damped Gauss–Newton: the residual r_j = q̃_j − R p̃(x0 + D s_j)
-    (s_j uniform in [0, 1], tildes = centred) is linearised in (x0, D) with the Kabsch R of
-    the current iterate held fixed — by the envelope theorem this is the gradient of the
-    reduced cost min_R Σ|r_j|² — and the derivative of the stored curve comes from its cubic
-    interpolant. Steps are clipped to 0 ≤ x0, x0 + D ≤ n − 1 and the time-scale range, and
+    Variable projection with damped Gauss–Newton: the residual r_j = q̃_j − R p̃(x0 + (x1 −
+    x0) s_j) (s_j uniform in [0, 1], tildes = centred) is linearised in (x0, x1) with the
+    Kabsch R of the current iterate held fixed — by the envelope theorem this is the
+    gradient of the reduced cost min_R Σ|r_j|² — and the derivative of the stored curve
+    comes from its cubic interpolant. Each step solves the linearised problem exactly under
+    0 ≤ x0, x1 ≤ n − 1 and the time-scale range lo ≤ x1 − x0 ≤ hi (:func:`_qp2`), and is
     accepted only when the cost decreases (Levenberg damping otherwise). Stops at
-    convergence, or as soon as the RMSD at the refinement points is below ``target``.
+    convergence, as soon as the RMSD at the refinement points is below ``target``, or when
+    it stalls (a step gaining < 10 %) at over 4·target.
     """
     off = int(bank.offsets[cand.prim])
     n_p = int(bank.offsets[cand.prim + 1]) - off
@@ -163,49 +193,74 @@ def refine(
     q = path.at(np.linspace(a, b, k))
     qc = q - q.mean(axis=0)
     s = np.linspace(0.0, 1.0, k)
+    # A z <= c for z = (x0, x1)
+    amat = np.array([[-1.0, 0.0], [0.0, 1.0], [1.0, -1.0], [-1.0, 1.0]])
+    cvec = np.array([0.0, n_p - 1.0, -lo, hi])
+    own = bank.points[off : off + n_p]
+    full = opts.mode == "full"
+    fix = np.ones(qc.shape[1])
 
-    def clip(z0: float, dur: float) -> tuple[float, float]:
-        dur = min(max(dur, lo), hi)
-        return min(max(z0, 0.0), n_p - 1.0 - dur), dur
-
-    def evaluate(z0: float, dur: float):
-        p, dp = cubic_at(bank.points, off, n_p, z0 + dur * s, derivative=True)
+    def evaluate(z: np.ndarray):
+        p, dp = cubic_at(own, 0, n_p, z[0] + (z[1] - z[0]) * s, derivative=True)
         pc = p - p.mean(axis=0)
-        r = rotation_for(pc.T @ qc, opts.mode)
+        h = pc.T @ qc
+        if full:
+            # any optimal rotation gives the same residual, so no canonical choice needed
+            u, _, vt = np.linalg.svd(h)
+            fix[-1] = 1.0 if np.linalg.det(u @ vt) > 0 else -1.0
+            r = (vt.T * fix) @ u.T
+        else:
+            r = rotation_for(h, opts.mode)
         res = qc - pc @ r.T
         return float(np.sum(res * res)), res, dp @ r.T
 
-    x0, dur = clip(cand.x0, cand.x1 - cand.x0)
-    cost, res, dpr = evaluate(x0, dur)
+    c0 = clamp(bank, cand, (b - a) * path.duration, opts)
+    z = np.array([c0.x0, c0.x1])
+    cost, res, dpr = evaluate(z)
     stop = target * target * k
     lam = 0.0
-    for _ in range(40):
-        if cost < stop:
-            break
-        jx = dpr - dpr.mean(axis=0)  # ∂(R p̃_j)/∂x0
-        sd = dpr * s[:, None]
-        jd = sd - sd.mean(axis=0)  # ∂(R p̃_j)/∂D
-        jac = np.stack([jx.ravel(), jd.ravel()], axis=1)
+    budget = 60  # evaluations
+    while budget > 0 and cost >= stop:
+        j1 = dpr * s[:, None]  # ∂(R p_j)/∂x1
+        j0 = dpr - j1  # ∂(R p_j)/∂x0
+        jac = np.stack([(j0 - j0.mean(axis=0)).ravel(), (j1 - j1.mean(axis=0)).ravel()], 1)
         jtj = jac.T @ jac
         g = jac.T @ res.ravel()
         improved = False
-        for _ in range(8):
-            try:
-                step = np.linalg.solve(jtj + lam * np.diag(np.diag(jtj) + 1e-12), g)
-            except np.linalg.LinAlgError:
+        while budget > 0:
+            h = jtj + (lam + 1e-12) * np.diag(np.diag(jtj) + 1e-12)
+            step = _qp2(h, g, z, amat, cvec)
+            if not np.any(step):
                 break
-            nx, nd = clip(x0 + step[0], dur + step[1])
-            ncost, nres, ndpr = evaluate(nx, nd)
+            nz = z + step
+            ncost, nres, ndpr = evaluate(nz)
+            budget -= 1
             if ncost < cost:
-                moved = abs(nx - x0) + abs(nd - dur)
+                moved = float(np.abs(step).sum())
                 gain = cost - ncost
-                x0, dur, cost, res, dpr = nx, nd, ncost, nres, ndpr
+                z, cost, res, dpr = nz, ncost, nres, ndpr
                 lam = lam / 10.0 if lam > 1e-6 else 0.0
                 improved = True
                 break
             lam = max(lam * 10.0, 1e-4)
+            if lam > 1e8:
+                break
         if not improved or moved < 1e-6 or gain < 1e-12 * cost:
             break
+        if stop > 0 and gain < 0.1 * cost and cost > 16.0 * stop:
+            break  # stalled at over 4·target: this seed's basin does not reach the target
+    return Candidate(cand.prim, float(z[0]), float(z[1]), cand.score)
+
+
+def clamp(bank: BankArrays, cand: Candidate, duration: float, opts: SearchOptions) -> Candidate:
+    """The candidate with its duration clipped to the time-scale range (for a query lasting
+    ``duration`` s) and its start moved so it stays inside the primitive."""
+    n_p = int(bank.offsets[cand.prim + 1] - bank.offsets[cand.prim])
+    dq = duration / bank.dt
+    lo = max(opts.time_scale[0] * dq, 1e-6)
+    hi = min(opts.time_scale[1] * dq, n_p - 1.0)
+    dur = min(max(cand.x1 - cand.x0, lo), hi)
+    x0 = min(max(cand.x0, 0.0), n_p - 1.0 - dur)
     return Candidate(cand.prim, x0, x0 + dur, cand.score)
 
 
@@ -368,8 +423,8 @@ class ArcIndex:
 
     step0: float
     levels: tuple[_Level, ...]
-    x_all: np.ndarray  # level-0 fractional sample index, for arc -> time
-    garc_all: np.ndarray
+    x_all: np.ndarray  # sample index of every stored sample, for arc -> time
+    garc_all: np.ndarray  # global arc coordinate of every stored sample
 
     @classmethod
     def build(cls, bank: BankArrays, points_per_sample: float = 0.25) -> ArcIndex:
@@ -415,7 +470,7 @@ class ArcIndex:
             if sel.sum() <= 2 * k or (1 << lv) * step0 * 16 > length.max():
                 break
             lv += 1
-        return cls(step0, tuple(levels), x, garc)
+        return cls(step0, tuple(levels), sample_idx.astype(float), g_samples)
 
 
 @dataclass
@@ -433,19 +488,41 @@ class IndexSearch:
         if self.index is None:
             self.index = ArcIndex.build(self.bank)
         self._grid = GridSearch(self.bank, self.opts, self.stats)
+        self._fine: dict[int, ArcIndex] = {}
 
-    def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
-        """Best distinct arc-window candidates below the gate 3·eps + Δ/2, best first.
+    def _index_for(self, ell: float) -> ArcIndex:
+        """The index, or a finer one (built once, on demand) for pieces short in arc length.
 
-        A stored copy of the query starts within Δ/2 of arc length of some window start,
-        which moves each arc sample by at most Δ/2: its window scores below Δ/2 plus the
-        copy's own arc-sampled deviation (a few eps at most for a match within eps).
+        Finer by 2ʲ so the piece gets ~16 arc samples, capped at 4 million indexed points.
         """
         idx = self.index
+        need = (self.target_points - 1) * idx.step0 / max(ell, 1e-300)
+        if need <= 1.0:
+            return idx
+        n0 = idx.levels[0].pts.shape[0]
+        j = min(math.ceil(math.log2(need)), int(math.log2(max(4e6 / max(n0, 1), 1.0))))
+        if j <= 0:
+            return idx
+        if j not in self._fine:
+            pps = n0 / max(self.bank.points.shape[0], 1)
+            self._fine[j] = ArcIndex.build(self.bank, points_per_sample=pps * 2**j)
+        return self._fine[j]
+
+    def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        """Best distinct arc-window candidates below the gate 3·eps + Δ, best first.
+
+        The score is the Kabsch RMSD of the arc samples combined (root sum of squares) with
+        ℓ times the RMS difference of the normalised time at the arc samples (the speed
+        profile). A stored copy of the query starts within Δ/2 of arc length of some window
+        start, which moves each arc sample by at most Δ/2 in space and in ℓ·τ: its window
+        scores below √2·Δ/2 plus the copy's own deviation (a few eps at most for a match
+        within eps).
+        """
         n_dense = max(64, int(round((b - a) * (path.n - 1))) * 2 + 1)
         dense = path.at(np.linspace(a, b, n_dense))
         chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
         ell = float(chord[-1])
+        idx = self._index_for(ell)
         if ell < 3.0 * idx.step0:
             # a (nearly) stationary or very short piece: arc length cannot place it
             return self._grid.seeds(path, a, b, eps)
@@ -465,7 +542,9 @@ class IndexSearch:
         m_all = lv.pts.shape[0] - k + 1
         if m_all <= 0:
             return []
-        w = np.flatnonzero(lv.left[:m_all] >= ell - 1e-9 * ell)
+        # chord lengths under-estimate arc length a little (more for the stored samples than
+        # for the densely sampled query): let a piece reach a primitive's very end
+        w = np.flatnonzero(lv.left[:m_all] >= ell - max(lv.step, 0.02 * ell))
         self.stats.queries += 1
         self.stats.windows += w.size
         if w.size == 0:
@@ -485,13 +564,28 @@ class IndexSearch:
             ok = (scale >= lo / 1.1) & (scale <= hi * 1.1)
             return sel[ok], x_end[ok]
 
+        # the speed profile: normalised time at each arc sample, query and windows
+        tau_q = (u - u[0]) / max(u[-1] - u[0], 1e-300)
+        x_view = sliding_window_view(lv.x, k)
+
         def score(sel: np.ndarray) -> np.ndarray:
             s_ = np.einsum("mak,kb->mab", win_view[w[sel]], qc, optimize=True)
             sq_ = np.broadcast_to(sq, (sel.size, 3)) if per_axis else sq
-            return rmsd_from_moments(s_, sp[sel], sq_, k, mode)
+            shape = rmsd_from_moments(s_, sp[sel], sq_, k, mode)
+            # a normalised-time error δτ at an arc sample moves the uniform-time sample by
+            # about ℓ·δτ along the curve: add it so pieces of the same shape traversed with
+            # another speed profile rank below the right one (never below the shape RMSD,
+            # so the lower bound still holds)
+            xw = x_view[w[sel]]
+            span = xw[:, -1] - xw[:, 0]
+            still = span <= 1e-9  # a stationary stretch: no speed profile to compare
+            tau_w = (xw - xw[:, :1]) / np.where(still, 1.0, span)[:, None]
+            tau_w[still] = tau_q
+            timing = ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1))
+            return np.hypot(shape, timing)
 
         m = self.opts.seeds
-        gate = 3.0 * eps + 0.5 * lv.step
+        gate = 3.0 * eps + lv.step
         done = np.zeros(w.size, bool)
         kept: list[Candidate] = []
         pool: list[Candidate] = []

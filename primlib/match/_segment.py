@@ -7,11 +7,16 @@ below the minimum σ; the longest matching prefix found becomes a segment (Step 
 search restarts from its end. The paper does not say what happens when nothing matches even
 at the minimum step: here the stretch [a, a + σ] becomes an *unmatched* segment
 (``primitive = None``; neighbouring unmatched stretches are merged) and the search goes on,
-so no part of the path is ever dropped.
+so no part of the path is ever dropped. The split runs on the path's sample grid (σ = one
+sample by default; halving with rounding up reaches every sample), so a path made of exact
+copies is cut exactly at its joins. When nothing matches from a cut, the unmatched stretch
+grows by σ, doubling while the failures go on: a sub-sample sliver left by a join between
+samples costs one step, a long stretch nothing matches only log₂ of its length in searches.
 
 A probe "matches" when some seed (see ``_search``), refined continuously, has Kabsch RMSD
-below ε against the piece, both sampled at one point per path sample in the piece (16 at
-least, ``confirm_max`` at most) — the RMSD reported in the segment.
+below ε against the piece, compared at the path's own samples in the piece (cuts lie on
+samples; 16 points at least) and the primitive at the corresponding uniform times — the RMSD
+reported in the segment.
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import InputError, NotFoundError
-from primlib.match._bank import BankArrays, as_bank
+from primlib.match._bank import BankArrays, as_bank, cubic_at
 from primlib.match._kabsch import ROTATION_MODES
 from primlib.match._search import (
     ArcIndex,
@@ -34,12 +39,13 @@ from primlib.match._search import (
     LoopSearch,
     PathPiece,
     SearchOptions,
+    clamp,
     piece_rmsd,
     refine,
 )
 from primlib.match._types import Match, Segment
 
-__all__ = ["segment_path", "match_path", "SEARCHES"]
+__all__ = ["segment_path", "match_path", "matched_pieces", "SEARCHES"]
 
 SEARCHES = ("index", "grid", "loop")
 
@@ -95,8 +101,9 @@ def _probe(searcher, bank, path, a, b, eps, opts, min_samples) -> _Found | None:
     """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?"""
     if (b - a) * (path.n - 1) < min_samples - 1 - 1e-9:
         return None
-    kc = path.confirm_points(a, b, opts.confirm_max)
+    kc = path.confirm_points(a, b)
     for seed in searcher.seeds(path, a, b, eps):
+        seed = clamp(bank, seed, (b - a) * path.duration, opts)
         r0 = piece_rmsd(bank, seed, path, a, b, kc, opts.mode).rmsd
         if r0 < eps:
             return _Found(seed, r0, False)
@@ -110,7 +117,7 @@ def _probe(searcher, bank, path, a, b, eps, opts, min_samples) -> _Found | None:
 def _segment_of(bank, path, a, b, found: _Found, opts) -> Segment:
     # the probe stopped at the first candidate within eps; report the refined optimum
     cand, rmsd = found.cand, found.rmsd
-    kc = path.confirm_points(a, b, opts.confirm_max)
+    kc = path.confirm_points(a, b)
     ref = refine(bank, cand, path, a, b, opts)
     if piece_rmsd(bank, ref, path, a, b, kc, opts.mode).rmsd < rmsd:
         cand = ref
@@ -199,7 +206,6 @@ def segment_path(
         scale_ratio=base.scale_ratio,
         seeds=base.seeds,
         refine_points=base.refine_points,
-        confirm_max=base.confirm_max,
     )
     _check_inputs(pts, bank, eps, opts)
     n = pts.shape[0]
@@ -326,3 +332,36 @@ def match_path(
         bank, points, path.duration / (n - 1), eps, rotation=rotation, time_scale=time_scale, **kw
     )
     return Match(tuple(segments), machine, float(eps), rotation, path, info)
+
+
+def matched_pieces(segments, bank: Any, n: int = 200) -> list[np.ndarray | None]:
+    """Each matched segment's stored piece carried through its transform (for figures).
+
+    Parameters
+    ----------
+    segments : sequence of Segment
+    bank : BankArrays or the store's Bank
+        The primitives the segments refer to.
+    n : int
+        Uniform-time points per piece.
+
+    Returns
+    -------
+    list of (array, shape (n, d)) or None
+        ``rotation @ prim(primitive_start + (primitive_end − primitive_start)·s) +
+        translation``; None for unmatched segments.
+    """
+    bank = as_bank(bank)
+    row = {int(pid): i for i, pid in enumerate(bank.ids)}
+    out: list[np.ndarray | None] = []
+    s = np.linspace(0.0, 1.0, n)
+    for seg in segments:
+        if seg.primitive is None:
+            out.append(None)
+            continue
+        i = row[int(seg.primitive)]
+        n_p = int(bank.offsets[i + 1] - bank.offsets[i])
+        x = (seg.primitive_start + (seg.primitive_end - seg.primitive_start) * s) * (n_p - 1)
+        p = cubic_at(bank.points, bank.offsets[i], n_p, x)
+        out.append(p @ np.asarray(seg.rotation).T + np.asarray(seg.translation))
+    return out

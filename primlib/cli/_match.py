@@ -1,0 +1,172 @@
+"""``primlib match``: cut a new path into pieces of stored primitives and report them.
+
+Reads the path CSV (fitted by :class:`primlib.nurbs.Trajectory`), matches it against the
+machine's primitives (:func:`primlib.match.match_path`) and prints one row per segment.
+``--out`` also builds the warm-start input (:func:`primlib.splice.warm_start`) and writes it
+as a signal CSV; ``--plot`` draws the segmentation. Everything is computed before anything
+is written, so a bad input writes nothing.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+import numpy as np
+
+from primlib._errors import InputError
+from primlib.cli import main
+
+__all__ = ["match"]
+
+
+def _interval(a: float, b: float) -> str:
+    return f"{a:.4f}-{b:.4f}"
+
+
+def _table(mt, duration: float) -> str:
+    headers = ["seg", "path v", "path t [s]", "primitive", "primitive v", "angle", "k", "rmsd"]
+    rows = []
+    for j, s in enumerate(mt.segments, 1):
+        if s.primitive is None:
+            prim, piv, ang, k, r = "(unmatched)", "-", "-", "-", "-"
+        else:
+            prim = f"#{s.primitive}" + (f" {s.primitive_name}" if s.primitive_name else "")
+            piv = _interval(s.primitive_start, s.primitive_end)
+            ang = f"{np.degrees(s.angle):.1f}°"
+            k = f"{s.time_scale:.3f}"
+            r = f"{s.rmsd:.3g}"
+        t = f"{s.start * duration:.3f}-{s.end * duration:.3f}"
+        rows.append([str(j), _interval(s.start, s.end), t, prim, piv, ang, k, r])
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(headers)]
+    right = {0, 5, 6, 7}
+
+    def line(cells: list[str]) -> str:
+        return "  ".join(
+            c.rjust(w) if i in right else c.ljust(w)
+            for i, (c, w) in enumerate(zip(cells, widths, strict=True))
+        ).rstrip()
+
+    return "\n".join([line(headers), line(["-" * w for w in widths]), *(line(r) for r in rows)])
+
+
+@main.command("match")
+@click.argument("path_csv", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--machine", "machine_name", required=True, help="Machine whose primitives to use.")
+@click.option(
+    "--eps",
+    type=float,
+    default=None,
+    help="Kabsch RMSD tolerance per segment (path units). Default: 1 % of the path's extent.",
+)
+@click.option(
+    "--rotation",
+    type=click.Choice(["full", "z", "none"]),
+    default="full",
+    show_default=True,
+    help="Rotations allowed: any proper rotation, about the vertical z axis only, or none.",
+)
+@click.option(
+    "--time-scale",
+    nargs=2,
+    type=float,
+    default=(0.25, 4.0),
+    show_default=True,
+    help="Allowed stored duration / segment duration (low high).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of a table.")
+@click.option(
+    "--plot",
+    "plot_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Save a figure: the path by segment with the transformed pieces, RMSD per segment.",
+)
+@click.option(
+    "--out",
+    "out_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Also build the warm-start input from the match and write it as a signal CSV.",
+)
+@click.pass_context
+def match(
+    ctx: click.Context,
+    path_csv: Path,
+    machine_name: str,
+    eps: float | None,
+    rotation: str,
+    time_scale: tuple[float, float],
+    as_json: bool,
+    plot_file: Path | None,
+    out_file: Path | None,
+) -> None:
+    """Match PATH_CSV (header t,x,y or t,x,y,z) against a machine's primitives.
+
+    Prints one row per segment: path interval, matched primitive and its interval,
+    rotation angle, time scale k (stored duration / segment duration) and Kabsch RMSD.
+
+    \b
+    primlib match new_path.csv --machine xyz --eps 0.05
+    primlib match new_path.csv --machine xyz --json --plot match.png --out u0.csv
+    """
+    from primlib.cli._library import _open
+    from primlib.nurbs import Trajectory
+
+    if eps is not None and not (np.isfinite(eps) and eps > 0):
+        raise InputError(f"--eps: expected a tolerance > 0, got {eps:g}")
+    for opt, f in (("--plot", plot_file), ("--out", out_file)):
+        if f is not None and not f.parent.exists():
+            raise InputError(f"{opt} {f}: directory {f.parent} does not exist")
+    traj = Trajectory.from_csv(path_csv)
+    with _open(ctx, read_only=True) as lib:
+        m = lib.machine(machine_name)
+        if traj.dim != m.dim:
+            raise InputError(
+                f"{path_csv}: expected a {m.dim}-D path for machine {machine_name!r}, "
+                f"got {traj.dim}-D"
+            )
+        e = eps if eps is not None else 0.01 * (traj.extent or 1.0)
+        kw = {"rotation": rotation, "time_scale": tuple(time_scale)}
+        ws = None
+        if out_file is not None:
+            ws = lib.warm_start(traj, machine=machine_name, eps=e, **kw)
+            mt = ws.match
+        else:
+            mt = lib.match(traj, machine=machine_name, eps=e, **kw)
+        pieces = None
+        if plot_file is not None:
+            from primlib.match import matched_pieces
+
+            pieces = matched_pieces(mt.segments, lib.bank(machine_name))
+    n = max(int(round(traj.duration / m.dt)) + 1, 2)
+    if plot_file is not None:
+        from primlib.plot._match import plot_match
+
+        plot_match(plot_file, traj.at(np.linspace(0.0, 1.0, n)), mt, pieces)
+    if ws is not None:
+        from primlib.io import write_signal_csv
+
+        write_signal_csv(out_file, ws.t, ws.u)
+    if as_json:
+        d = mt.to_dict()
+        d["path"] = str(path_csv)
+        d["duration"] = float(traj.duration)
+        if out_file is not None:
+            d["out"] = str(out_file)
+        if plot_file is not None:
+            d["plot"] = str(plot_file)
+        click.echo(json.dumps(d, indent=2))
+        return
+    info = mt.info
+    click.echo(
+        f"{path_csv}: {len(mt.segments)} segment(s), {mt.n_unmatched} unmatched, "
+        f"machine {machine_name}, eps {e:.4g}, rotation {rotation}, "
+        f"{info.get('probes', 0)} probes in {info.get('seconds', 0.0):.2f} s"
+    )
+    click.echo(_table(mt, traj.duration))
+    if out_file is not None:
+        click.echo(f"warm-start input written to {out_file}")
+    if plot_file is not None:
+        click.echo(f"figure written to {plot_file}")
