@@ -98,6 +98,13 @@ def test_cli_table_and_bad_option():
     result = runner.invoke(main, ["reproduce", "pdccilc", "--iterations", "1", "--no-convergence"])
     assert result.exit_code == 0, result.output
     assert "paper: PDCCILC best, 93 % reduction" in result.output
+    raw = runner.invoke(
+        main,
+        ["reproduce", "pdccilc", "--iterations", "1", "--no-convergence", "--no-q-filter"]
+        + ["--json"],
+    )
+    assert raw.exit_code == 0, raw.output
+    assert json.loads(raw.stdout)["settings"]["q_cutoff_hz"] is None
     bad = runner.invoke(main, ["reproduce", "pdccilc", "--iterations", "0"])
     assert bad.exit_code == 2
     assert "--iterations" in bad.output

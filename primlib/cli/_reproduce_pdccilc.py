@@ -35,11 +35,16 @@ __all__ = ["pdccilc"]
     help="-3 dB frequency (Hz) of the zero-phase Q-filter.",
 )
 @click.option(
+    "--no-q-filter",
+    is_flag=True,
+    help="Learn without a Q-filter (the laws then diverge after some 20 trials: see README).",
+)
+@click.option(
     "--no-convergence",
     is_flag=True,
     help="Skip the lifted convergence figures (sigma_max, rho, asymptotic error).",
 )
-def pdccilc(as_json, plot_dir, iterations, q_cutoff, no_convergence):
+def pdccilc(as_json, plot_dir, iterations, q_cutoff, no_q_filter, no_convergence):
     """Four laws (TDILC, TDCCILC, PDILC, PDCCILC) on the paper's stage (eq. 33), three contours.
 
     Prints the RMS contour error before and after learning, its reduction, and the lifted
@@ -47,7 +52,11 @@ def pdccilc(as_json, plot_dir, iterations, q_cutoff, no_convergence):
     """
     from primlib.reproduce._pdccilc import PAPER, pdccilc_study
 
-    study = pdccilc_study(iterations=iterations, q_cutoff=q_cutoff, convergence=not no_convergence)
+    study = pdccilc_study(
+        iterations=iterations,
+        q_cutoff=None if no_q_filter else q_cutoff,
+        convergence=not no_convergence,
+    )
     if plot_dir is not None:
         from primlib.plot._pdccilc import plot_pdccilc
 

@@ -14,21 +14,31 @@ What the paper leaves open, and primlib's choice:
   x = 10 (t/T) cos(4 pi t/T), y = 10 (t/T) sin(4 pi t/T). The master x rests at the
   semicircle's ends and reverses four times on the spiral.
 - The Q-filter's bandwidth is not given: a zero-phase Gaussian at 1 Hz (see
-  :mod:`primlib.ilc._ms_law`); without one the laws diverge after about 20 trials, as
-  the plant is non-minimum-phase on both axes (the first closed-loop Markov parameters are
-  negative, so eq. (29) fails for any positive learning gain).
+  :mod:`primlib.ilc._ms_law`). The plant is non-minimum-phase on both axes: the closed
+  loop's first Markov parameter h[1] is negative (-6.3e-4 on x, -2.9e-4 on y), so the
+  D-type learning of Table 1 (kd/dt = 20) puts M's diagonal at 1 - a h[1] > 1 (1.013 on
+  x). Without a Q-filter (``--no-q-filter``) the cross-coupled laws turn round after 11-35
+  trials and diverge (RMS 3-12 mm at trial 100); the uncoupled ones grow too slowly to
+  show within 100 trials.
 - Iterations: 50 by default (the paper's figures are not legible on this).
 
-Where the reproduction disagrees with the paper, and why (details in the README):
-- eq. (30) holds (sigma_max < 1) for TDILC, PDILC and TDCCILC but not for PDCCILC on the
-  semicircle (sigma_max about 1.014): the position-domain slave gains near the master's rest
-  points make the composite expand some direction slightly; the trials still converge over
-  the 50 iterations, but monotonic convergence is not certified.
-- PDCCILC is the best of the four on all three contours and reduces the RMS contour error
-  by 95-96 % (paper: 93 %, 93 %, 98 %), but its margin over TDCCILC is a few per cent, not
-  the paper's factor of about 2 (Table 3 is experimental); the coupling, not the position
-  domain, does most of the work on this model, and PDILC does not beat TDCCILC on the
-  parabola as the paper's Fig. 9 says.
+Where the reproduction disagrees with the paper, and why (50 iterations, Q at 1 Hz):
+- PDCCILC reduces the RMS contour error by 95.5 %, 92.2 % and 96.0 % (paper: 93, 93, 98 %):
+  the >= 90 % claim holds. It is the best of the four on the semicircle and the spiral, but
+  on the parabola TDCCILC ends 4 % lower (43.6 vs 45.5 um), and the margins elsewhere are
+  5-13 %, not the paper's factor of about 2 (its Table 3 is experimental). Why: with Table
+  1's gains the CCC has no derivative term (kd = 0), so the position domain changes only
+  the slave's D-type learning gain, from kd/dt to kd/dx (eq. 14), and the contour term's
+  one-sample "integral" (ki dx/2 instead of ki dt/2, negligible). On a path whose master
+  moves at a constant speed (the parabola) that is just a smaller constant gain; the
+  cross-coupling, not the domain, does the work. For the same reason PDILC does not beat
+  TDCCILC on the parabola (paper, Fig. 9), nor match it on the spiral (Fig. 11).
+- Eq. (30) holds (sigma_max < 1) for TDILC, PDILC and TDCCILC on all three contours but
+  not for PDCCILC on the semicircle (1.0136) and the parabola (1.0017): monotonic
+  convergence is not certified there, though all 50 trials improve. The paper's Table 2
+  prints Table 1's gains, so there is nothing to compare with.
+- The asymptotic errors (eqs. 31-32) are 2-4 times below the 50th trial's: the learning is
+  slow at low frequency, where the PID's integral makes the closed loop's gain vanish.
 """
 
 from __future__ import annotations
