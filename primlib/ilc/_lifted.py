@@ -55,7 +55,7 @@ import numpy as np
 from scipy import fft, linalg, sparse
 from scipy.sparse.linalg import LinearOperator, eigsh, gmres, svds
 
-from primlib._errors import InputError
+from primlib._errors import InputError, PrimlibError
 from primlib.ilc._ms_law import MasterSlaveLaw
 from primlib.plant import max_singular_value
 
@@ -297,9 +297,9 @@ class LiftedMasterSlave:
         x, info = gmres(a, rhs, rtol=tol, atol=0.0, restart=200, maxiter=50)
         if info != 0:
             if size > 6000:
-                raise InputError(
+                raise PrimlibError(
                     f"asymptotic: GMRES did not converge for 2N = {size} (I - M is too "
-                    "ill-conditioned); expected 2N <= 6000 for the dense fallback"
+                    "ill-conditioned) and the dense fallback needs 2N <= 6000"
                 )
             x = np.linalg.solve(np.eye(size) - self.dense(), rhs)  # eq. (31)
         u = self._pad(x.reshape(2, self.n_learn, 1))
@@ -353,6 +353,19 @@ def lifted_master_slave(law: MasterSlaveLaw, model, reference) -> LiftedMasterSl
     Returns
     -------
     LiftedMasterSlave
+
+    Raises
+    ------
+    InputError
+        For a model that is not two-axis or a reference whose shape differs from the law's.
+
+    Examples
+    --------
+    >>> law = master_slave_law(r, m.dt, "pdccilc", q_cutoff=1.0)   # doctest: +SKIP
+    >>> lifted = lifted_master_slave(law, m, r)                     # doctest: +SKIP
+    >>> lifted.max_singular_value(), lifted.spectral_radius()       # doctest: +SKIP
+    (1.0136..., (1.0115..., False))
+    >>> u_inf, e_inf = lifted.asymptotic()                          # doctest: +SKIP
     """
     r = np.asarray(reference, dtype=float)
     if model.dim != 2:

@@ -330,6 +330,20 @@ def master_slave_law(
     Returns
     -------
     MasterSlaveLaw
+
+    Raises
+    ------
+    InputError
+        For a reference that is not (n >= 3, 2) and finite, an unknown law, or an option
+        out of range (the message names it).
+
+    Examples
+    --------
+    >>> th = np.pi * np.linspace(0, 1, 2401)
+    >>> r = np.column_stack([10 * (1 - np.cos(th)), 10 * np.sin(th)])
+    >>> law = master_slave_law(r, 0.005, "pdccilc", q_cutoff=1.0)
+    >>> bool(law.dw[:, 1].min() > 0)    # the master rests at both ends: ds stays positive
+    True
     """
     r = _check_reference(reference)
     name = str(law).lower()
