@@ -186,3 +186,69 @@ def test_learn_missing_file_exits_2(setup, tmp_path):
     )
     assert res.exit_code == 2
     assert "none.csv: expected a path CSV file, got no such file" in res.output
+
+
+def test_example_builds_the_library_and_learns(tmp_path):
+    runner = CliRunner()
+    db = tmp_path / "example.duckdb"
+    fig = tmp_path / "warm.png"
+    res = runner.invoke(
+        main,
+        [
+            "--db",
+            str(db),
+            "example",
+            "--data",
+            str(ROOT / "data"),
+            "--path",
+            "corner-and-arc",
+            "--iterations",
+            "1",
+            "--plot",
+            str(fig),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert "warm start from" in res.output
+    assert fig.read_bytes()[:4] == b"\x89PNG"
+    with Library(db, read_only=True) as lib:
+        stems = sorted(
+            p.stem
+            for p in (ROOT / "data" / "library").glob("*.csv")
+            if not p.name.endswith(".signal.csv")
+        )
+        assert sorted(i.name for i in lib.primitives("xyz")) == stems
+        # bundled signals were learned on the XYZ model: each tracks its path
+        m = lib.machine("xyz")
+        for info in lib.primitives("xyz"):
+            p = lib.get(info.id)
+            err = np.sqrt(np.mean((m.simulate(p.signal) - (p.points - p.points[0])) ** 2))
+            assert err < 1e-3, info.name
+    # a second run reuses the library (no duplicates)
+    res = runner.invoke(
+        main,
+        [
+            "--db",
+            str(db),
+            "example",
+            "--data",
+            str(ROOT / "data"),
+            "--path",
+            "corner-and-arc",
+            "--iterations",
+            "1",
+            "--plot",
+            str(fig),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    with Library(db, read_only=True) as lib:
+        assert len(lib.primitives("xyz")) == len(stems)
+
+
+def test_example_without_data_exits_2(tmp_path):
+    res = CliRunner().invoke(
+        main, ["--db", str(tmp_path / "e.duckdb"), "example", "--data", str(tmp_path)]
+    )
+    assert res.exit_code == 2
+    assert "expected the example data" in res.output

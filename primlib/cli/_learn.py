@@ -44,7 +44,7 @@ def run_learning(
         ``notes`` (list of str).
     """
     from primlib.ilc import learn as ilc_learn
-    from primlib.splice import warm_start
+    from primlib.splice import DEFAULT_EPS, warm_start
 
     m = lib.machine(machine_name)
     pts = trajectory.sample(m.dt)
@@ -54,7 +54,7 @@ def run_learning(
     ws = None
     u0 = None
     if not cold:
-        e = eps if eps is not None else 0.01 * (trajectory.extent or 1.0)
+        e = eps if eps is not None else DEFAULT_EPS * (trajectory.extent or 1.0)
         try:
             ws = warm_start(lib, trajectory, machine_name, e, band=band)
             u0 = ws.u
@@ -97,7 +97,7 @@ def run_learning(
     type=click.IntRange(min=1),
     help="ILC trials at most.",
 )
-@click.option("--eps", type=float, help="Match tolerance (default: 1 % of the path's extent).")
+@click.option("--eps", type=float, help="Match tolerance (default: 3e-4 of the path's extent).")
 @click.option("--band", type=float, help="Transition band width, seconds (default 8 dt).")
 @click.option(
     "--law", default="norm-optimal", show_default=True, help="ILC law (see primlib.ilc.learn)."

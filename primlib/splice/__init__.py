@@ -40,6 +40,7 @@ from primlib.splice._transform import (
     transform,
 )
 from primlib.splice._warm import (
+    DEFAULT_EPS,
     WarmStart,
     find_versions,
     learn_signal,
@@ -60,6 +61,7 @@ __all__ = [
     "StoredSignal",
     "METHODS",
     "WarmStart",
+    "DEFAULT_EPS",
     "warm_start",
     "learn_signal",
     "find_versions",

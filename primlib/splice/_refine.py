@@ -114,6 +114,11 @@ def refine_machine(machine, pairs: Sequence[tuple[np.ndarray, np.ndarray]]) -> R
             r1 = resid(th)
         except (ValueError, np.linalg.LinAlgError):
             th, r1 = theta[i], r0
+        if th[2] < 0.1 * machine.dt:
+            # a lag far below the sample time is not resolvable at this rate (and would put a
+            # sampling zero outside the unit circle for nothing): leave it out
+            th = np.array([th[0], th[1], 0.0])
+            r1 = resid(th)
         if np.sum(r1**2) < np.sum(r0**2):
             theta[i] = th
             rms1[i] = np.sqrt(np.mean(r1**2)) * scale

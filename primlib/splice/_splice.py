@@ -61,6 +61,8 @@ from primlib.splice._transform import (
 __all__ = ["Band", "StoredSignal", "SpliceResult", "splice", "METHODS"]
 
 METHODS = ("auto", "model", "direct")
+# weight of the first-difference penalty of the junction correction (relative)
+JUNCTION_SMOOTH = 1e-3
 
 
 @dataclass(frozen=True)
@@ -166,12 +168,16 @@ def _reach(seg, stored, side: str) -> float:
     return max(0.0, frac) * float(prim.duration) / k
 
 
-def _correct_junctions(machine, u, y_d, t, bands, half: float, feedback: bool):
+def _correct_junctions(
+    machine, u, y_d, t, bands, half: float, feedback: bool, smooth: float | None = None
+):
     """Least-squares input correction near the junctions; returns (u, samples per axis).
 
-    min ||y_d - G (u + E x)||^2 + lam ||x||^2 over x, E selecting the samples within
-    ``half`` of a junction, G the lifted (closed-loop) model; lam = 1e-8 trace(A^T A) / m,
-    A = G E, so the weight is relative and scale-free.
+    min ||y_d - G (u + E x)||^2 + lam (smooth ||D x||^2 + 1e-8 ||x||^2) over x, E selecting
+    the samples within ``half`` of a junction, G the lifted (closed-loop) model, D the first
+    difference inside each band; lam = trace(A^T A) / m, A = G E, so the weights are
+    relative and scale-free. The difference penalty keeps the correction from the
+    alternating (Nyquist) inputs an exact sampled-data inverse would use.
     """
     n = u.shape[0]
     mask = np.zeros(n, dtype=bool)
@@ -184,16 +190,23 @@ def _correct_junctions(machine, u, y_d, t, bands, half: float, feedback: bool):
     h = machine.impulse_response(n)
     rows = np.arange(n)[:, None] - idx[None, :]  # G[r, j] = h[r - j] for r >= j
     valid = rows >= 0
+    m = idx.size
+    d = np.zeros((m - 1, m))
+    d[np.arange(m - 1), np.arange(m - 1)] = -1.0
+    d[np.arange(m - 1), np.arange(1, m)] = 1.0
+    d = d[np.diff(idx) == 1]  # no difference across two bands
+    smooth = JUNCTION_SMOOTH if smooth is None else smooth
+    reg = smooth * (d.T @ d) + 1e-8 * np.eye(m)
     out = u.copy()
     for i in range(machine.dim):
         a = np.where(valid, h[np.clip(rows, 0, n - 1), i], 0.0)
         ata = a.T @ a
-        lam = 1e-8 * np.trace(ata) / idx.size
+        lam = np.trace(ata) / m
         if lam <= 0:
             continue
-        x = np.linalg.solve(ata + lam * np.eye(idx.size), a.T @ resid[:, i])
+        x = np.linalg.solve(ata + lam * reg, a.T @ resid[:, i])
         out[idx, i] += x
-    return out, int(idx.size)
+    return out, int(m)
 
 
 def _absorb_slivers(segs, stored, T: float, limit: float):

@@ -9,6 +9,7 @@ whose converged input the library stores as a new primitive.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,7 +18,18 @@ import numpy as np
 from primlib._errors import InputError, NoMatchError
 from primlib.splice._splice import Band, StoredSignal, splice
 
-__all__ = ["WarmStart", "warm_start", "learn_signal", "find_versions", "stored_signals"]
+__all__ = [
+    "WarmStart",
+    "warm_start",
+    "learn_signal",
+    "find_versions",
+    "stored_signals",
+    "DEFAULT_EPS",
+]
+
+# default match tolerance, relative to the path's extent: the warm start's first-trial error
+# follows the pieces' shape error, so a tight match pays (3e-4 of a 70 mm path is 0.02 mm)
+DEFAULT_EPS = 3e-4
 
 # normalised-time samples on which two stored paths are compared for "same primitive"
 _VERSION_SAMPLES = 64
@@ -151,6 +163,36 @@ def stored_signals(bank, ids, *, versions: bool = True) -> dict[int, StoredSigna
     return out
 
 
+_REFINED: dict = {}
+_REFINE_MAX = 24  # primitives a refinement fits on (matched ones first)
+
+
+def _refined(m, bank, ids):
+    """The model refined on the matched primitives, plus others of the bank up to 24, so
+    that an axis the matched pieces do not move (a rotation can move it on the new path)
+    is refined too. Cached per machine model and primitive set."""
+    from primlib.splice._refine import refine_machine
+
+    all_ids = [int(i) for i in np.asarray(bank.ids)]
+    chosen = [i for i in ids if i in all_ids]
+    chosen += [i for i in all_ids if i not in chosen][: max(0, _REFINE_MAX - len(chosen))]
+    stored = stored_signals(bank, chosen, versions=False)
+    digest = hashlib.blake2b(digest_size=16)
+    for pid in sorted(chosen):
+        digest.update(np.ascontiguousarray(stored[pid].signal).tobytes())
+        digest.update(np.ascontiguousarray(stored[pid].points).tobytes())
+    key = (repr(m.to_dict()), digest.hexdigest())  # the data, not the ids: ids repeat
+    hit = _REFINED.get(key)
+    if hit is not None:
+        return hit
+    pairs = [(s.signal, s.points - s.points[0]) for s in stored.values()]
+    model = refine_machine(m, pairs)
+    if len(_REFINED) > 64:
+        _REFINED.clear()
+    _REFINED[key] = model
+    return model
+
+
 def _trajectory(path):
     from primlib.nurbs import Trajectory
 
@@ -187,7 +229,8 @@ def warm_start(
     method : {"auto", "model", "direct"}
         Time-scaling method, see :func:`primlib.splice.splice`.
     refine : bool
-        Refine the machine model on the matched primitives' own (input, path) pairs before
+        Refine the machine model on stored (input, path) pairs — the matched primitives',
+        then others of the machine up to 24 — before
         transforming (:func:`primlib.splice.refine_machine`): the stored signals were
         learned on the real machine, so they say how it differs from its model; the time
         scale and axis mixing then use the refined model. Unmatched segments still get the
@@ -224,10 +267,7 @@ def warm_start(
     model = None
     used = m
     if refine and stored and not m.feedback:
-        from primlib.splice._refine import refine_machine
-
-        pairs = [(s.signal, s.points - s.points[0]) for s in stored.values()]
-        model = refine_machine(m, pairs)
+        model = _refined(m, library.bank(machine), ids)
         used = model.machine
     res = splice(
         used,
@@ -245,7 +285,7 @@ def warm_start(
             f"{a}: gain {g:.4g}, time scale {c:.4g}, lag {tau * 1e3:.3g} ms"
             for a, (g, c, tau) in zip(m.axes, model.theta, strict=True)
         )
-        notes = (*notes, f"model refined on {len(stored)} stored primitive(s): {th}")
+        notes = (*notes, f"model refined on the library's stored pairs: {th}")
     t = np.arange(pts.shape[0]) * m.dt
     return WarmStart(
         u=res.u,
@@ -283,7 +323,7 @@ def learn_signal(
     cold : bool
         Start from zero instead of the library's warm start.
     eps : float, optional
-        Match tolerance; default 1 % of the path's extent.
+        Match tolerance; default ``DEFAULT_EPS`` (3e-4) times the path's extent.
     tol : float, optional
         Stop when the RMS tracking error falls below this (user units).
     law : str
@@ -302,7 +342,7 @@ def learn_signal(
     ref = pts - pts[0]
     u0 = None
     if not cold:
-        e = eps if eps is not None else 0.01 * (traj.extent or 1.0)
+        e = eps if eps is not None else DEFAULT_EPS * (traj.extent or 1.0)
         try:
             u0 = warm_start(library, traj, machine, e).u
         except NoMatchError:
