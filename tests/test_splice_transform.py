@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from primlib import InputError
 from primlib.plant import Machine, invert
@@ -16,6 +18,7 @@ from primlib.splice import (
     superpose,
     time_scale,
     time_scale_direct,
+    transform,
 )
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "machines"
@@ -213,3 +216,30 @@ def test_transform_errors(xyz):
         superpose(xyz, u, -np.eye(3))
     with pytest.raises(InputError, match="u: expected finite values"):
         time_scale(xyz, np.full((10, 3), np.nan), 2.0)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    k=st.floats(0.4, 2.5),
+    angles=st.tuples(st.floats(-np.pi, np.pi), st.floats(-np.pi, np.pi)),
+    seed=st.integers(0, 2**16),
+)
+def test_transform_exact_for_any_scale_and_rotation(k, angles, seed):
+    # property: on the nominal model the transformed input reproduces R y_l(k t) at every
+    # sample, for any time scale and proper rotation (the axes all differ: eq. (24))
+    m = Machine.from_json(DATA / "xyz.json")
+    rng = np.random.default_rng(seed)
+    t = np.arange(201) * m.dt
+    c = rng.normal(size=(3, 3))
+    y = np.stack(
+        [np.sin(np.pi * t / t[-1]) ** 2 * c[i, 0] + c[i, 1] * (t / t[-1]) ** 3 for i in range(3)], 1
+    )
+    u = invert(m, y)
+    a, b = angles
+    rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    rx = np.array([[1, 0, 0], [0, np.cos(b), -np.sin(b)], [0, np.sin(b), np.cos(b)]])
+    r = rz @ rx
+    ud = transform(m, u, k=k, rotation=r)
+    tq = np.arange(ud.shape[0]) * m.dt
+    target = continuous_output(m, u, k * tq) @ r.T
+    np.testing.assert_allclose(m.simulate(ud), target, atol=1e-8 * max(1.0, np.abs(target).max()))
