@@ -70,6 +70,19 @@ def _list_array(flat: np.ndarray, offsets: np.ndarray) -> pa.LargeListArray:
     return pa.LargeListArray.from_arrays(pa.array(offsets), pa.array(flat))
 
 
+def _list_chunks(arrays: list[np.ndarray]) -> pa.ChunkedArray:
+    """A list column with one value per array, each a chunk over that array's own buffer."""
+    return pa.chunked_array(
+        [
+            pa.LargeListArray.from_arrays(
+                pa.array(np.array([0, a.size], dtype=np.int64)), pa.array(a.ravel())
+            )
+            for a in arrays
+        ],
+        type=pa.large_list(pa.float64()),
+    )
+
+
 def _flat(column: pa.ChunkedArray) -> np.ndarray:
     """The values of a list column, concatenated, as float64 numpy (zero copy when possible)."""
     arr = column.combine_chunks()
@@ -560,12 +573,13 @@ class Library:
         n = np.array([c["n"] for c in checked], dtype=np.int64)
         m = np.array([len(c["weights"]) for c in checked], dtype=np.int64)
         nk = np.array([len(c["knots"]) for c in checked], dtype=np.int64)
-        sample_offsets = np.concatenate([[0], np.cumsum(n * d)])
         ctrl_offsets = np.concatenate([[0], np.cumsum(m * d)])
         weight_offsets = np.concatenate([[0], np.cumsum(m)])
         knot_offsets = np.concatenate([[0], np.cumsum(nk)])
-        points = np.concatenate([c["points"].ravel() for c in checked])
-        signals = np.concatenate([c["u"].ravel() for c in checked])
+        # The big columns stay in their own buffers, one chunk per primitive: concatenating
+        # 115 MB first (1,000 x 2,400 x 3 x 2 doubles) cost more than DuckDB's insert here.
+        points = _list_chunks([c["points"] for c in checked])
+        signals = _list_chunks([c["u"] for c in checked])
         knots = np.concatenate([c["knots"] for c in checked])
         ctrlpts = np.concatenate([c["ctrlpts"].ravel() for c in checked])
         weights = np.concatenate([c["weights"] for c in checked])
@@ -593,8 +607,8 @@ class Library:
                         "knots": _list_array(knots, knot_offsets),
                         "ctrlpts": _list_array(ctrlpts, ctrl_offsets),
                         "weights": _list_array(weights, weight_offsets),
-                        "points": _list_array(points, sample_offsets),
-                        "signal": _list_array(signals, sample_offsets),
+                        "points": points,
+                        "signal": signals,
                     }
                 )
                 con.register("_primlib_batch", table)
