@@ -274,7 +274,8 @@ def main(argv=None) -> int:
     goals = {
         "warm <= cold / 20": first["warm"] <= first["cold"] / 20,
         "warm <= inverse / 1.5": first["warm"] <= first["inverse"] / 1.5,
-        "iterations warm <= cold / 2": its["warm"] <= its["cold"] / 2,
+        "iterations warm <= cold / 2": bool(np.isfinite(its["warm"]))
+        and its["warm"] <= its["cold"] / 2,
         "contour warm <= cold / 20": first_c["warm"] <= first_c["cold"] / 20,
         "contour warm <= inverse / 1.5": first_c["warm"] <= first_c["inverse"] / 1.5,
     }
