@@ -397,3 +397,37 @@ def test_learn_needs_a_two_axis_machine():
     m = Machine.from_json(DATA / "xyz.json")
     with pytest.raises(InputError, match=r"plant: expected a two-axis machine .* got 3 axes"):
         learn_master_slave(m, semicircle(100))
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    st.sampled_from(LAWS),
+    st.integers(0, 2**31 - 1),
+    st.floats(0.0, 2.0),
+    st.floats(0.0, 1.0),
+    st.floats(0.0, 0.5),
+    st.sampled_from([None, 6.0]),
+)
+def test_lifted_operator_is_the_law_for_random_paths_and_gains(name, seed, kp, ki, kd, q):
+    # a random walk (master rests, reverses, jumps) and random gains: the FFT operator and its
+    # adjoint equal the dense lifted matrix, and the law is linear in the error
+    rng = np.random.default_rng(seed)
+    r = np.cumsum(rng.standard_normal((60, 2)) * (rng.random((60, 1)) > 0.3), axis=0)
+    r -= r[0]
+    gains = MasterSlaveGains(ilc=(kp, ki, kd), ccc=(kp, ki, kd))
+    law = master_slave_law(r, DT, name, gains=gains, q_cutoff=q)
+    machine = Machine.from_json(DATA / "xy-pdccilc.json")
+    lifted = lifted_master_slave(law, machine, r)
+    dense = lifted.dense()
+    v = rng.standard_normal(2 * lifted.n_learn)
+    scale = max(1.0, np.abs(dense).max()) * 1e-11
+    np.testing.assert_allclose(lifted.operator.matvec(v), dense @ v, atol=scale * np.abs(v).sum())
+    np.testing.assert_allclose(
+        lifted.operator.rmatvec(v), dense.T @ v, atol=scale * np.abs(v).sum()
+    )
+    e1, e2 = rng.standard_normal((2, 60, 2))
+    np.testing.assert_allclose(
+        law.correction(2 * e1 - 3 * e2),
+        2 * law.correction(e1) - 3 * law.correction(e2),
+        atol=1e-9 * (1 + np.abs(law.a).max()),
+    )
