@@ -349,6 +349,16 @@ def test_pdccilc_learns_the_semicircle_on_the_paper_machine(paper_machine):
     assert res.rms_contour[-1] == pytest.approx(np.sqrt(np.mean(eps**2)), rel=1e-12)
 
 
+def test_a_trajectory_is_sampled_on_the_machine_grid(paper_machine):
+    from primlib.nurbs import Trajectory
+
+    points = semicircle(401)
+    path = Trajectory.from_samples(points, DT)
+    res = learn_master_slave(paper_machine, path, law="tdccilc", iterations=2, check=False)
+    ref = learn_master_slave(paper_machine, points, law="tdccilc", iterations=2, check=False)
+    np.testing.assert_allclose(res.rms_contour, ref.rms_contour, rtol=1e-3)
+
+
 def test_cross_coupling_beats_independent_learning_on_contour_error(paper_machine):
     r = semicircle(801)
     out = {

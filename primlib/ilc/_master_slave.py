@@ -120,8 +120,9 @@ def learn_master_slave(
     plant : Machine
         Two-axis machine that runs the trials (its PID loops track the reference; the
         input is feedforward added to the PID output).
-    reference : array, shape (n, 2)
-        The path sampled on the machine's dt grid; taken relative to its first point.
+    reference : array, shape (n, 2), or Trajectory
+        The path sampled on the machine's dt grid (a two-axis ``Trajectory`` is sampled at
+        the machine's dt); taken relative to its first point, like the outputs.
     u0 : array, shape (n, 2), optional
         First trial's input (a warm start); zeros by default.
     law : {"tdilc", "tdccilc", "pdilc", "pdccilc"}
@@ -179,6 +180,8 @@ def learn_master_slave(
             f"model: expected a two-axis machine with dt = {plant.dt:g} s like the plant, "
             f"got {getattr(model, 'dim', None)} axes at dt = {getattr(model, 'dt', None)}"
         )
+    if hasattr(reference, "sample") and hasattr(reference, "duration"):
+        reference = reference.sample(plant.dt)  # a primlib Trajectory
     points = _check_reference(reference)
     r = points - points[0]
     if not isinstance(iterations, int | np.integer) or iterations < 0:
