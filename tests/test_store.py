@@ -157,6 +157,27 @@ def test_bank_is_cached_until_the_machine_s_primitives_change(lib):
     assert list(lib.bank("xyz").ids) == [b]
 
 
+def test_bank_signals_are_read_on_first_use_and_stay_aligned(tmp_path):
+    db = tmp_path / "lib.duckdb"
+    lib = Library(db)
+    lib.add_machine(xyz())
+    a, b, c = lib.add_many([(curve(s), signal_for(curve(s), s)) for s in range(3)], "xyz")
+    bank = lib.bank("xyz")
+    lib.add(curve(7), signal_for(curve(7), 7), machine="xyz")  # newer rows are ignored
+    np.testing.assert_array_equal(
+        bank.signals, np.concatenate([signal_for(curve(s), s) for s in range(3)])
+    )
+    stale = lib.bank("xyz")
+    lib.remove(b)
+    with pytest.raises(InputError, match=rf"primitive {b} was removed after this bank was read"):
+        _ = stale.signals
+    late = lib.bank("xyz")
+    lib.close()
+    with pytest.raises(InputError, match=r"lib.duckdb was closed before this bank's signals"):
+        _ = late.signals
+    np.testing.assert_array_equal(bank.signal_of(2), signal_for(curve(2), 2))  # kept
+
+
 # ---------------------------------------------------------------------------- transactions
 def test_add_many_checks_everything_first_so_a_bad_item_writes_nothing(lib):
     good = [(curve(s), signal_for(curve(s)), f"g{s}", None) for s in range(4)]

@@ -825,9 +825,11 @@ class Library:
         -------
         Bank
             Ordered by id; ``points`` and ``signals`` of shape (N, d) concatenated, with
-            ``offsets`` (k + 1,). Empty (k = 0) when the machine has no primitives. Its
-            arrays are read-only: while the machine's primitives are unchanged, later calls
-            return the same Bank without reading the file again.
+            ``offsets`` (k + 1,). Empty (k = 0) when the machine has no primitives.
+            ``signals`` are read on first access (matching needs only the points), so
+            read them before closing the library. The arrays are read-only: while the
+            machine's primitives are unchanged, later calls return the same Bank without
+            reading the file again.
 
         Raises
         ------
@@ -860,7 +862,7 @@ class Library:
             self._db()
             .sql(
                 "SELECT id, name, duration, n_samples, degree, knots, ctrlpts, weights, "
-                "points, signal FROM primitives WHERE machine = $m",
+                "points FROM primitives WHERE machine = $m",
                 params={"m": machine},
             )
             .to_arrow_table()
@@ -888,18 +890,52 @@ class Library:
             durations=table.column("duration").to_numpy().astype(np.float64),
             offsets=offsets_of(n),
             points=_flat(table.column("points")).reshape(-1, d),
-            signals=_flat(table.column("signal")).reshape(-1, d),
             degrees=table.column("degree").to_numpy().astype(np.int64),
             knots=_flat(table.column("knots")),
             knot_offsets=offsets_of(knots_arr.value_lengths().to_numpy(zero_copy_only=False)),
             ctrlpts=_flat(table.column("ctrlpts")).reshape(-1, d),
             weights=_flat(table.column("weights")),
             ctrl_offsets=offsets_of(weights_arr.value_lengths().to_numpy(zero_copy_only=False)),
+            load_signals=lambda: self._bank_signals(machine, ids, d),
         )
         for value in vars(bank).values():
             if isinstance(value, np.ndarray):
                 value.setflags(write=False)
         return bank
+
+    def _bank_signals(self, machine: str, ids: np.ndarray, d: int) -> np.ndarray:
+        """The signals of a bank's primitives, in the bank's order (read on first use)."""
+        if self._con is None:
+            raise InputError(
+                f"{self._label} was closed before this bank's signals were read; "
+                "read bank.signals while the library is open"
+            )
+        table = (
+            self._db()
+            .sql(
+                "SELECT id, signal FROM primitives WHERE machine = $m",
+                params={"m": machine},
+            )
+            .to_arrow_table()
+        )
+        got = table.column("id").to_numpy().astype(np.int64)
+        if not np.array_equal(got, ids):
+            # Rows removed or added since the bank was read: pick the bank's ids (never
+            # reused, so an id names the same primitive), unless one of them is gone.
+            order = np.argsort(got, kind="stable")
+            pos = np.searchsorted(got[order], ids)
+            pos = np.minimum(pos, max(len(got) - 1, 0))
+            found = got[order][pos] == ids if len(got) else np.zeros(len(ids), bool)
+            if not np.all(found):
+                missing = int(ids[np.flatnonzero(~found)[0]])
+                raise InputError(
+                    f"{self._label}: primitive {missing} was removed after this bank was "
+                    "read; read the bank again"
+                )
+            table = table.take(pa.array(order[pos]))
+        signals = _flat(table.column("signal")).reshape(-1, d)
+        signals.setflags(write=False)
+        return signals
 
     # ------------------------------------------------------------------ removing
     def remove(self, id: int) -> None:

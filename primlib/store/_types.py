@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
@@ -107,7 +108,9 @@ class Bank:
     points : array, shape (N, d)
         Every primitive's path on the dt grid, concatenated (N = offsets[-1]).
     signals : array, shape (N, d)
-        Every primitive's signal on the same grid, concatenated.
+        Every primitive's signal on the same grid, concatenated. Read from the library on
+        first access (one more columnar query), since matching needs only ``points``; the
+        library must still be open then.
     degrees : array of int64, shape (k,)
         NURBS degrees.
     knots, knot_offsets : array (K,), array of int64 (k + 1,)
@@ -127,13 +130,23 @@ class Bank:
     durations: np.ndarray
     offsets: np.ndarray
     points: np.ndarray
-    signals: np.ndarray
     degrees: np.ndarray
     knots: np.ndarray
     knot_offsets: np.ndarray
     ctrlpts: np.ndarray
     weights: np.ndarray
     ctrl_offsets: np.ndarray
+    load_signals: Callable[[], np.ndarray] | None = field(default=None, repr=False)
+    _signals: list[np.ndarray] = field(default_factory=list, repr=False)
+
+    @property
+    def signals(self) -> np.ndarray:
+        """Every primitive's signal, concatenated, shape (N, d) (read once, then kept)."""
+        if not self._signals:
+            if self.load_signals is None:
+                raise ValueError("this bank was built without signals")
+            self._signals.append(self.load_signals())
+        return self._signals[0]
 
     def __len__(self) -> int:
         return len(self.ids)
