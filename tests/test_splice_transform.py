@@ -156,13 +156,16 @@ def test_superpose_mixes_different_axes_through_model_ratios(xyz):
 
 def test_holding_input_zero_for_integrators_dc_otherwise(xyz, stage):
     np.testing.assert_array_equal(holding_input(xyz, [1.0, -2.0, 3.0]), 0.0)
-    # PID with integral action holds any offset by itself
-    np.testing.assert_allclose(holding_input(stage, [1.0, 2.0]), 0.0, atol=1e-12)
     lag = Machine("lag", 0.01, ("x",), {"x": ([2.0], [0.1, 1.0])})
     h = holding_input(lag, [3.0])
     np.testing.assert_allclose(h, [1.5])
     y = lag.simulate(np.full((400, 1), h[0]))
     np.testing.assert_allclose(y[-1], [3.0], rtol=1e-9)
+    # under PID with integral action the feedforward holds the offset itself (a tracking
+    # feedforward keeps the PID's error, hence its integral, at zero): p / P(0)
+    p = np.array([1.0, 2.0])
+    h = holding_input(stage, p)
+    np.testing.assert_allclose(h, p * np.array([5.564 / 5.291, 2.127 / 2.132]), rtol=1e-9)
 
 
 def test_derivative_orders(xyz, stage):

@@ -48,8 +48,9 @@ def _library(machine, shapes):
     items = []
     for name, pts in shapes:
         traj = Trajectory.from_samples(pts, DT)
-        ref = traj.sample(DT)
-        items.append((traj, invert(machine, ref - ref[0]), name, "test"))
+        ref = traj.sample(DT) - pts[0]
+        fb = ref if machine.feedback else None
+        items.append((traj, invert(machine, ref, reference=fb), name, "test"))
     lib.add_many(items, machine.name)
     return lib
 
@@ -147,3 +148,24 @@ def test_warm_start_needs_primitives(xyz):
     traj = Trajectory.from_samples(_arc(1.0), DT)
     with pytest.raises(NoMatchError):
         warm_start(lib, traj, "xyz", 0.01)
+
+
+def test_warm_start_on_the_pid_stage_holds_the_offset():
+    # two-axis non-minimum-phase stage in a PID loop (PDCCILC paper, eq. (33)): the second
+    # piece starts 10 mm away, which a stable plant only holds with a DC feedforward
+    m = Machine.from_json(ROOT / "data" / "machines" / "xy-pdccilc.json")
+    arc = _arc(3.0)[:, :2]
+    line = _wave(3.0)[:, :2] * [1.0, 0.0]
+    lib = _library(m, [("arc", arc), ("line", line)])
+    rz = np.array([[0, -1], [1, 0.0]])
+    a = _arc(3.6)[:, :2]
+    b = (_wave(2.5)[:, :2] * [1.0, 0.0]) @ rz.T
+    path = np.vstack([a, (b + a[-1] - b[0])[1:]])
+    traj = Trajectory.from_samples(path, DT)
+    ws = warm_start(lib, traj, "xy-pdccilc", 0.01)
+    ref = traj.sample(DT)
+    ref = ref - ref[0]
+    warm = np.sqrt(np.mean((m.simulate(ws.u, ref) - ref) ** 2))
+    cold = np.sqrt(np.mean((m.simulate(np.zeros_like(ws.u), ref) - ref) ** 2))
+    assert np.all(np.isfinite(ws.u))
+    assert warm < cold / 100

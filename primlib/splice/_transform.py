@@ -35,9 +35,10 @@ input mixes them through ``P_j / P_i``: ``u_d,i = Σ_j R_ij P_i^{-1} P_j u_j`` �
 same way (target ``R y_l``, correction by the inverse); between identical axes (same plant,
 same PID) the ratio is 1 and the input is exactly ``R u``, no model involved. Translation
 adds the holding input of eqs. (16)-(18): the input that keeps an axis at offset p_i in
-steady state — zero for integrating axes and for loops with an integral action,
-``p_i / P_i(0)`` (offset over DC gain) otherwise. The paper's settling-time construction of
-u_I (its figure 3) is this DC input once transients have died out.
+steady state — zero for integrating axes, ``p_i / P_i(0)`` (offset over DC gain) otherwise,
+also under a PID with integral action (a tracking feedforward keeps the PID's error zero).
+The paper's settling-time construction of u_I (its figure 3) is this DC input once
+transients have died out.
 
 Model-free time scale (eq. (20), Xu's direct learning). When the same primitive is stored
 at several durations, the model coefficients are not needed, only the structure. For an
@@ -153,9 +154,11 @@ def holding_input(machine, offset) -> np.ndarray:
     Returns
     -------
     u : array, shape (d,)
-        Zero on an integrating axis (the position stays where the motion left it) and under
-        a PID with integral action; otherwise ``p_i / P_i(0)`` (at rest on the reference the
-        PID's error is zero, so the feedforward alone holds the offset).
+        Zero on an integrating axis (the position stays where the motion left it);
+        otherwise ``p_i / P_i(0)``, also under a PID with integral action: a feedforward
+        that tracks keeps the PID's error and so its integral at zero, so it must hold the
+        offset itself (an integrator charged by the motion is not what the stored signals
+        assumed).
     """
     p = np.asarray(offset, dtype=float).reshape(-1)
     if p.shape != (machine.dim,) or not np.all(np.isfinite(p)):
@@ -163,15 +166,12 @@ def holding_input(machine, offset) -> np.ndarray:
             f"translation: expected {machine.dim} finite numbers, got shape {np.shape(offset)}"
         )
     out = np.zeros(machine.dim)
-    controllers = machine.controllers()
     for i, (b, a) in enumerate(machine.discrete()):
         a1, b1 = float(np.sum(a)), float(np.sum(b))
         if abs(a1) <= 1e-12 * float(np.sum(np.abs(a))):
             continue  # integrating axis: the position stays where the motion left it
-        cg = controllers[i]
-        if cg is not None and abs(float(np.sum(cg[1]))) <= 1e-12 * float(np.sum(np.abs(cg[1]))):
-            continue  # the PID's integral action holds the offset (error 0 at rest)
-        # at rest on the reference the PID's error is 0, so the feedforward alone holds p
+        # a feedforward that tracks keeps the PID's error, hence its integral, at zero: the
+        # feedforward alone holds the offset, also under integral action
         out[i] = p[i] * a1 / b1
     return out
 
