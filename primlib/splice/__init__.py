@@ -19,10 +19,12 @@ signals were learned on the real machine, so they tell how it differs from its m
 :func:`learn_signal` runs ILC from it.
 
 Which time scaling is used when: a piece with k = 1 on the grid uses the stored input as it
-is; otherwise "auto" uses eq. (20) when the primitive is stored at as many distinct
-durations as the model's inverse has derivative orders (2 on the XYZ machine, eq. (24)) on
-an open-loop all-pole machine, and the model-based transform in every other case (one
-version, plants with zeros such as the non-minimum-phase PDCCILC stage, PID loops).
+is; otherwise ``method="auto"`` uses eq. (20) when the primitive is stored at as many
+distinct durations as the model's inverse has derivative orders (:func:`derivative_orders`
+of the model the warm start uses: 2 for the XYZ machine of eq. (24), 3 once refinement has
+found a lag) on an open-loop all-pole machine, and the model-based transform in every
+other case (one version, plants with zeros such as the non-minimum-phase PDCCILC stage,
+PID loops). ``method="model"`` / ``"direct"`` force one.
 
 Notation: signals ``u`` have shape (n, d) on the machine's dt grid; ``k`` = primitive
 duration / new duration; signals and outputs are deviations from the path's first point.
