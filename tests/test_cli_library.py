@@ -15,7 +15,7 @@ import pytest
 from click.testing import CliRunner
 
 from primlib.cli import main
-from primlib.io import read_signal_csv, write_path_csv, write_signal_csv
+from primlib.io import read_path_csv, read_signal_csv, write_path_csv, write_signal_csv
 from primlib.store import Library
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "machines"
@@ -194,9 +194,12 @@ def test_list_show_remove(tmp_path, db, monkeypatch):
         p = lib.get(2)
         np.testing.assert_array_equal(d["nurbs"]["ctrlpts"], p.trajectory.ctrlpts)
         assert d["signal_rms"]["x"] == pytest.approx(np.sqrt(np.mean(p.signal[:, 0] ** 2)))
-    out = tmp_path / "u.csv"
-    assert run(db, "show", "2", "--signal-out", out).exit_code == 0
-    np.testing.assert_array_equal(read_signal_csv(out)[1], p.signal)
+    out, path_out = tmp_path / "u.csv", tmp_path / "p.csv"
+    assert run(db, "show", "2", "--signal-out", out, "--path-out", path_out).exit_code == 0
+    t_out, u_out = read_signal_csv(out)
+    np.testing.assert_array_equal(u_out, p.signal)
+    np.testing.assert_array_equal(read_path_csv(path_out)[1], p.points)
+    np.testing.assert_allclose(t_out, np.arange(N) * DT, rtol=0, atol=1e-12)
     res = run(db, "remove", "1")
     assert res.exit_code == 0 and "removed primitive 1 (seed" in res.stdout
     assert [p["id"] for p in json.loads(run(db, "list", "--json").stdout)] == [2]
