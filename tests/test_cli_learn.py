@@ -252,3 +252,19 @@ def test_example_without_data_exits_2(tmp_path):
     )
     assert res.exit_code == 2
     assert "expected the example data" in res.output
+
+
+def test_learn_without_primitives_starts_cold(tmp_path):
+    runner = CliRunner()
+    db = tmp_path / "empty.duckdb"
+    assert runner.invoke(main, ["--db", str(db), "machine", "add", str(XYZ)]).exit_code == 0
+    f = tmp_path / "arc.csv"
+    pts = _arc(1.0)
+    write_path_csv(f, np.arange(pts.shape[0]) * DT, pts)
+    res = runner.invoke(
+        main, ["--db", str(db), "learn", str(f), "--machine", "xyz", "-n", "2", "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert out["start"] == "cold"
+    assert any("no warm start" in note for note in out["notes"])
