@@ -40,10 +40,14 @@ such a matrix are ill-conditioned (a perturbation of 1e-16 moves them by orders 
 magnitude more; two dense ``eig`` runs of the same 4,800 x 4,800 matrix gave 259 and 1,690),
 so primlib reports the certified upper bound of Gelfand's formula
 
-    rho(M) <= min_k sigma_max(M^k)^(1/k),   k in (1, 2, 4, 8, ...)
+    rho(M) <= min_k sigma_max(M^k)^(1/k),   k in (1, 4, 16, 64)
 
 whose ingredients are singular values (perfectly conditioned) computed by the same
-Lanczos method on the operator M^k; ``spectral_radius_exact`` says which one was reported.
+Lanczos method on the operator M^k (k products per step, no matrix formed); the bound
+tightens towards rho as k grows (PDCCILC on the paper's semicircle: 1.0136, 1.0115, 0.9978,
+0.9604 for k = 1, 4, 16, 64), so it can certify rho < 1 (eq. 29: convergence) where
+sigma_max >= 1 (eq. 30: no monotonic guarantee). ``spectral_radius_exact`` says which of
+the two was reported.
 """
 
 from __future__ import annotations
@@ -257,7 +261,7 @@ class LiftedMasterSlave:
             amat += a[:, 2, None, None] * nrm[:, :, None] * nrm[:, None, :]
         return np.eye(2)[None] - amat * self.h[lead][None, None, :]
 
-    def spectral_radius(self, powers: tuple[int, ...] = (1, 2, 4, 8)) -> tuple[float, bool]:
+    def spectral_radius(self, powers: tuple[int, ...] = (1, 4, 16, 64)) -> tuple[float, bool]:
         """rho(M), eq. (29), and whether it is exact.
 
         Exact (max |eigenvalue| of the 2 x 2 diagonal blocks) when :attr:`triangular`;
