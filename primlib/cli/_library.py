@@ -1,4 +1,4 @@
-"""Library commands: ``machine add/list``, ``ingest``, ``list``, ``show``, ``remove``.
+"""Library commands: ``machine add/list/remove``, ``ingest``, ``list``, ``show``, ``remove``.
 
 A thin layer: files are read by :mod:`primlib.io`, paths fitted by
 :class:`primlib.nurbs.Trajectory`, and everything is stored by :class:`primlib.store.Library`.
