@@ -178,6 +178,30 @@ def test_bank_signals_are_read_on_first_use_and_stay_aligned(tmp_path):
     np.testing.assert_array_equal(bank.signal_of(2), signal_for(curve(2), 2))  # kept
 
 
+@settings(max_examples=10, deadline=None)
+@given(ops=st.lists(st.tuples(st.booleans(), st.integers(0, 3)), min_size=1, max_size=8))
+def test_bank_matches_the_stored_set_after_any_adds_and_removes(ops):
+    # The bank cache keys on (count, largest id); any sequence of adds and removes must
+    # give the bank a fresh read would give.
+    with Library() as lib:
+        lib.add_machine(xyz())
+        stored: dict[int, np.ndarray] = {}
+        for step, (add, k) in enumerate(ops):
+            if add or not stored:
+                paths = [curve(step * 4 + j, steps=10) for j in range(k + 1)]
+                batch = [(p, signal_for(p, step * 4 + j)) for j, p in enumerate(paths)]
+                for pid, (_, u) in zip(lib.add_many(batch, "xyz"), batch, strict=True):
+                    stored[pid] = u
+            else:
+                pid = sorted(stored)[k % len(stored)]
+                lib.remove(pid)
+                del stored[pid]
+            bank = lib.bank("xyz")
+            assert list(bank.ids) == sorted(stored)
+            for i, pid in enumerate(bank.ids):
+                np.testing.assert_array_equal(bank.signal_of(i), stored[int(pid)])
+
+
 # ---------------------------------------------------------------------------- transactions
 def test_add_many_checks_everything_first_so_a_bad_item_writes_nothing(lib):
     good = [(curve(s), signal_for(curve(s)), f"g{s}", None) for s in range(4)]
