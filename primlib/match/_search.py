@@ -20,8 +20,9 @@ differ only in how fast they find the seeds:
     the window second moments from cumulative sums, and the RMSD of all windows at once
     from ``rmsd_from_moments`` (QCP, no rotation formed).
 ``LoopSearch``
-    The same candidates, one ``kabsch`` call each: the plain per-candidate loop the
-    benchmark times against and the tests compare with.
+    The same candidates, one ``kabsch`` call each and no pruning: the plain per-candidate
+    loop the benchmark times against and the tests compare with. (``GridSearch`` skips the
+    exact score of windows whose radius-of-gyration bound already reaches their gate.)
 ``IndexSearch`` (the default, fast)
     A rigid motion and a change of time scale leave the arc-length shape of a piece
     unchanged, so the library is indexed once by resampling every primitive at uniform arc
@@ -342,9 +343,10 @@ class GridSearch:
             prim = np.repeat(ok, n_res)
             local = np.arange(base[-1]) - np.repeat(base[:-1], n_res)
             res = cubic_at(bank.points, bank.offsets[prim], counts[prim], local * h)
-            starts = np.concatenate([base[i] + np.arange(n_start[i]) for i in range(ok.size)])
+            first = np.concatenate([[0], np.cumsum(n_start)])
+            s_local = np.arange(first[-1]) - np.repeat(first[:-1], n_start)
+            starts = np.repeat(base[:-1], n_start) + s_local
             s_prim = np.repeat(ok, n_start)
-            s_local = starts - np.repeat(base[:-1], n_start)
             yield res, starts, s_prim, s_local * h, dur
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
@@ -356,10 +358,10 @@ class GridSearch:
         pool: list[Candidate] = []
         self.stats.queries += 1
         for res, starts, s_prim, x0, dur in self._windows(path, a, b):
-            rmsd = self._score(res, starts, q, qc, sq, k, mode)
+            gate = eps + self._slack(s_prim, dur, k)
+            rmsd = self._score(res, starts, q, qc, sq, k, mode, gate)
             self.stats.windows += starts.size
-            self.stats.scored += starts.size
-            ok = np.flatnonzero(rmsd < eps + self._slack(s_prim, dur, k))
+            ok = np.flatnonzero(rmsd < gate)
             top = ok[np.argsort(rmsd[ok])[: 8 * self.opts.seeds]]
             pool += [
                 Candidate(int(s_prim[t]), float(x0[t]), float(x0[t] + dur), float(rmsd[t]))
@@ -383,21 +385,33 @@ class GridSearch:
         cell = dur / (k - 1) / 2.0 + dur * (math.sqrt(self.opts.scale_ratio) - 1.0)
         return 1.25 * self._vmax[prim] * cell
 
-    def _score(self, res, starts, q, qc, sq, k, mode) -> np.ndarray:
+    def _score(self, res, starts, q, qc, sq, k, mode, gate) -> np.ndarray:
+        """RMSD of every window that can pass ``gate``; +inf for the others, which the
+        radius-of-gyration bound |g(P) − g(Q)| ≤ rmsd proves to be at or above it."""
         # centre per window via cumulative sums; the cross term needs no centring (Σ q̃ = 0)
         res_c = res - res.mean(axis=0)
         cs, cs2 = _cumsums(res_c)
-        sp = _window_moments(cs, cs2, starts, k, per_axis=(mode == "z"))
-        win = sliding_window_view(res_c, k, axis=0)[starts]  # (m, d, k)
-        s = np.einsum("mak,kb->mab", win, qc, optimize=True)
-        return rmsd_from_moments(s, sp, np.broadcast_to(sq, sp.shape), k, mode)
+        per_axis = mode == "z"
+        sp = _window_moments(cs, cs2, starts, k, per_axis=per_axis)
+        tot = sp.sum(axis=1) if per_axis else sp
+        g_q = math.sqrt(float(np.sum(sq)) / k)
+        live = np.flatnonzero(np.abs(np.sqrt(np.maximum(tot, 0.0) / k) - g_q) < gate)
+        out = np.full(starts.size, np.inf)
+        self.stats.scored += live.size
+        if live.size:
+            win = sliding_window_view(res_c, k, axis=0)[starts[live]]  # (m, d, k)
+            s = np.einsum("mak,kb->mab", win, qc, optimize=True)
+            sp_l = sp[live]
+            out[live] = rmsd_from_moments(s, sp_l, np.broadcast_to(sq, sp_l.shape), k, mode)
+        return out
 
 
 @dataclass
 class LoopSearch(GridSearch):
     """The same grid as :class:`GridSearch`, one Kabsch call per candidate (reference)."""
 
-    def _score(self, res, starts, q, qc, sq, k, mode) -> np.ndarray:
+    def _score(self, res, starts, q, qc, sq, k, mode, gate) -> np.ndarray:
+        self.stats.scored += starts.size
         return np.array([kabsch(res[m : m + k], q, mode=mode).rmsd for m in starts])
 
 
@@ -480,7 +494,8 @@ class IndexSearch:
     bank: BankArrays
     opts: SearchOptions
     index: ArcIndex | None = None
-    target_points: int = 16
+    target_points: int = 24
+    phase_bits: int = 1
     chunk: int = 4096
     stats: _Stats = field(default_factory=_Stats)
 
@@ -489,6 +504,29 @@ class IndexSearch:
             self.index = ArcIndex.build(self.bank)
         self._grid = GridSearch(self.bank, self.opts, self.stats)
         self._fine: dict[int, ArcIndex] = {}
+        self._dcs: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+
+    def _moments(self, lv: _Level, w: np.ndarray, k: int, dil: int, per_axis: bool):
+        """Σ|p − p̄|² of the dilated windows {w + i·dil, i < k} from per-residue cumsums."""
+        if dil == 1:
+            return _window_moments(lv.cs, lv.cs2, w, k, per_axis)
+        key = (id(lv), dil)
+        if key not in self._dcs:
+            m, d = lv.pts.shape
+            rows = -(-m // dil)
+            x = np.zeros((rows * dil, d))
+            x[:m] = lv.pts
+            x = x.reshape(rows, dil, d)
+            c1 = np.zeros((rows + 1, dil, d))
+            np.cumsum(x, axis=0, out=c1[1:])
+            c2 = np.zeros_like(c1)
+            np.cumsum(x * x, axis=0, out=c2[1:])
+            self._dcs = {key: (c1, c2)}  # one at a time: probes reuse the same level
+        c1, c2 = self._dcs[key]
+        qd, r = np.divmod(w, dil)
+        sx = c1[qd + k, r] - c1[qd, r]
+        sp = (c2[qd + k, r] - c2[qd, r]) - sx * sx / k
+        return sp if per_axis else sp.sum(axis=1)
 
     def _index_for(self, ell: float) -> ArcIndex:
         """The index, or a finer one (built once, on demand) for pieces short in arc length.
@@ -526,10 +564,17 @@ class IndexSearch:
         if ell < 3.0 * idx.step0:
             # a (nearly) stationary or very short piece: arc length cannot place it
             return self._grid.seeds(path, a, b, eps)
-        lv_n = int(np.floor(np.log2(ell / (idx.step0 * (self.target_points - 1)))))
-        lv = idx.levels[int(np.clip(lv_n, 0, len(idx.levels) - 1))]
-        k = int(np.floor(ell / lv.step + 1e-9)) + 1
-        s = np.arange(k) * lv.step
+        # spacing Δ_j gives target..2·target arc samples; window starts on the finer level
+        # j − phase_bits (windows then take every dil-th point), so a stored copy starts
+        # within Δ_j / (2·dil) of some window
+        top = len(idx.levels) - 1
+        j = int(np.clip(np.floor(np.log2(ell / (idx.step0 * (self.target_points - 1)))), 0, top))
+        jb = max(j - self.phase_bits, 0)
+        lv = idx.levels[jb]
+        dil = 1 << (j - jb)
+        step = lv.step * dil
+        k = int(np.floor(ell / step + 1e-9)) + 1
+        s = np.arange(k) * step
         t_dense = np.linspace(0.0, 1.0, n_dense)
         u = np.interp(s, chord + np.arange(n_dense) * 1e-15 * max(ell, 1.0), t_dense)
         q = path.at(a + (b - a) * u)
@@ -539,19 +584,20 @@ class IndexSearch:
         sq = (qc * qc).sum(axis=0) if per_axis else float((qc * qc).sum())
         g_q = math.sqrt(float(np.sum(sq)) / k)
         # candidate windows: in one primitive, long enough, time scale in range
-        m_all = lv.pts.shape[0] - k + 1
+        span = (k - 1) * dil + 1
+        m_all = lv.pts.shape[0] - span + 1
         if m_all <= 0:
             return []
         # chord lengths under-estimate arc length a little (more for the stored samples than
         # for the densely sampled query): let a piece reach a primitive's very end
-        w = np.flatnonzero(lv.left[:m_all] >= ell - max(lv.step, 0.02 * ell))
+        w = np.flatnonzero(lv.left[:m_all] >= ell - max(step, 0.02 * ell))
         self.stats.queries += 1
         self.stats.windows += w.size
         if w.size == 0:
             return []
-        sp = _window_moments(lv.cs, lv.cs2, w, k, per_axis)
+        sp = self._moments(lv, w, k, dil, per_axis)
         lb = np.abs(np.sqrt(np.maximum(np.sum(sp, axis=1) if per_axis else sp, 0.0) / k) - g_q)
-        win_view = sliding_window_view(lv.pts, k, axis=0)
+        win_view = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil]
 
         dq = (b - a) * path.duration / self.bank.dt
         lo, hi = self.opts.time_scale
@@ -566,7 +612,7 @@ class IndexSearch:
 
         # the speed profile: normalised time at each arc sample, query and windows
         tau_q = (u - u[0]) / max(u[-1] - u[0], 1e-300)
-        x_view = sliding_window_view(lv.x, k)
+        x_view = sliding_window_view(lv.x, span)[:, ::dil]
 
         def score(sel: np.ndarray) -> np.ndarray:
             s_ = np.einsum("mak,kb->mab", win_view[w[sel]], qc, optimize=True)

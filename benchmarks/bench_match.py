@@ -1,0 +1,209 @@
+"""Benchmark of ``primlib match``: 1,000 primitives of 2,000 samples (3-D), a new path of
+2,400 samples made of 5 rotated, translated, time-scaled pieces of stored primitives.
+
+Reports, each beside its baseline measured in the same run:
+
+* the whole ``Library.match`` (bank from DuckDB, arc-length index, binary-search
+  segmentation), cold (first call builds the index) and warm (median of 3);
+* the same segmentation from the exhaustive grid search (``search="grid"``: every
+  primitive × start × time scale, vectorised) — asserted equal — and its time;
+* the plain per-candidate Kabsch loop over the grid's candidates: timed on a subset of one
+  probe's candidates, scaled by the number of candidates the exhaustive search scores;
+* match time against library size 10 / 100 / 1,000.
+
+Run: ``OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_match.py``
+(``--quick``: 100 primitives for the exhaustive comparison, a few minutes less).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
+
+from primlib.match import segment_path  # noqa: E402
+from primlib.match._bank import as_bank  # noqa: E402
+from primlib.match._kabsch import kabsch  # noqa: E402
+from primlib.match._search import GridSearch, PathPiece, SearchOptions  # noqa: E402
+from primlib.nurbs import Trajectory  # noqa: E402
+from primlib.plant import Machine  # noqa: E402
+from primlib.store import Library  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+N_SAMPLES = 2000
+EPS = 0.05
+# (primitive, start v, time scale k, samples of the new path) for the 5 pieces
+PIECES = [(0, 0.05, 0.6, 480), (1, 0.30, 0.8, 481), (2, 0.10, 1.0, 481), (3, 0.40, 1.3, 481),
+          (4, 0.20, 1.7, 481)]  # fmt: skip
+
+
+def random_primitive(rng: np.random.Generator, dt: float) -> Trajectory:
+    """A smooth random 3-D motion: clamped cubic B-spline, 24 control points, ~100 mm wide."""
+    m, p = 24, 3
+    ctrl = np.cumsum(rng.normal(size=(m, 3)) * 12.0, axis=0)
+    knots = np.concatenate([np.zeros(p), np.linspace(0.0, 1.0, m - p + 1), np.ones(p)])
+    return Trajectory.from_definition(p, knots, ctrl, None, (N_SAMPLES - 1) * dt)
+
+
+def build_library(k: int, machine: Machine, seed: int = 0) -> Library:
+    rng = np.random.default_rng(seed)
+    lib = Library()
+    lib.add_machine(machine)
+    zeros = np.zeros((N_SAMPLES, 3))
+    items = [(random_primitive(rng, machine.dt), zeros, f"r{i}", None) for i in range(k)]
+    lib.add_many(items, machine.name)
+    return lib
+
+
+def build_path(lib: Library, machine: Machine, seed: int = 1):
+    """The 5 pieces, each rotated at random, joined end to start, fitted as one path."""
+    rng = np.random.default_rng(seed)
+    bank = lib.bank(machine.name)
+    dt = machine.dt
+    out, last = [], np.zeros(3)
+    truth = []
+    for row, v0, k, n in PIECES:
+        traj = bank.trajectory(row)
+        v1 = v0 + k * (n - 1) * dt / traj.duration
+        pts = traj.at(np.linspace(v0, v1, n))
+        pts = pts @ Rotation.random(random_state=int(rng.integers(2**31))).as_matrix().T
+        pts += last - pts[0]
+        last = pts[-1]
+        out.append(pts if not out else pts[1:])
+        truth.append(int(bank.ids[row]))
+    pts = np.concatenate(out)
+    return Trajectory.from_samples(pts, dt), truth
+
+
+def key(segments) -> list[tuple[float, int | None]]:
+    return [(round(s.end, 9), s.primitive) for s in segments]
+
+
+def timed(fn, repeat: int = 3) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="exhaustive comparison on 100 prims")
+    args = ap.parse_args()
+    machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    print(f"machine {machine.name}: dt {machine.dt} s; eps {EPS}; pieces {len(PIECES)}")
+
+    sizes = (10, 100, 1000)
+    t0 = time.perf_counter()
+    libs = {k: build_library(k, machine) for k in sizes}
+    path, truth = build_path(libs[10], machine)
+    n = int(round(path.duration / machine.dt)) + 1
+    setup = time.perf_counter() - t0
+    print(f"setup: libraries {sizes} and the path ({n} samples) in {setup:.1f} s")
+
+    # -- the whole match, 1,000 primitives
+    lib = libs[1000]
+    t0 = time.perf_counter()
+    mt = lib.match(path, machine=machine.name, eps=EPS)
+    cold = time.perf_counter() - t0
+    warm, mt2 = timed(lambda: lib.match(path, machine=machine.name, eps=EPS))
+    assert key(mt.segments) == key(mt2.segments)
+    segs = mt.segments
+    print(f"\nmatch, 1,000 primitives: {len(segs)} segments, {mt.n_unmatched} unmatched")
+    for s in segs:
+        print(
+            f"  {s.start:.4f}-{s.end:.4f}  #{s.primitive}  k={s.time_scale:.3f}  "
+            f"angle={np.degrees(s.angle):6.1f}  rmsd={s.rmsd:.4f}"
+        )
+    assert len(segs) <= len(PIECES) + 1, "more segments than pieces + 1"
+    assert [s.primitive for s in segs] == truth, "the pieces' primitives were not recovered"
+    assert all(s.rmsd < EPS for s in segs)
+    info = mt2.info
+    print(
+        f"  cold {cold:.3f} s (bank + index), warm {warm:.3f} s (median of 3); "
+        f"{info['probes']} probes, {info['windows']:,} windows, {info['scored']:,} scored"
+    )
+
+    # -- exhaustive grid search on the same samples
+    k_ex = 100 if args.quick else 1000
+    bank = as_bank(libs[k_ex].bank(machine.name))
+    pts = path.at(np.linspace(0.0, 1.0, n))
+    dt = path.duration / (n - 1)
+    fast_t, (fast_segs, fast_info) = timed(lambda: segment_path(bank, pts, dt, EPS), 1)
+    if k_ex != 1000:
+        fast_t, (fast_segs, fast_info) = timed(lambda: segment_path(bank, pts, dt, EPS), 3)
+    t0 = time.perf_counter()
+    grid_segs, grid_info = segment_path(bank, pts, dt, EPS, search="grid")
+    grid_t = time.perf_counter() - t0
+    same = key(grid_segs) == key(fast_segs)
+    print(
+        f"\nexhaustive grid search, {k_ex} primitives: {grid_t:.1f} s, "
+        f"{grid_info['windows']:,} candidates over {grid_info['probes']} probes"
+    )
+    print(f"  same segmentation as the index search: {same}")
+    assert same, f"grid {key(grid_segs)} != index {key(fast_segs)}"
+
+    # -- per-candidate Kabsch loop: rate on one probe's candidates, scaled to all of them
+    opts = SearchOptions()
+    grid = GridSearch(bank, opts)
+    piece = PathPiece(pts, path.duration)
+    q = piece.at(np.linspace(0.0, segs[0].end, opts.grid_points))
+    res, starts, *_ = next(iter(grid._windows(piece, 0.0, segs[0].end)))
+    sub = starts[:3000]
+    t0 = time.perf_counter()
+    for m in sub:
+        kabsch(res[m : m + opts.grid_points], q)
+    rate = sub.size / (time.perf_counter() - t0)
+    loop_t = grid_info["windows"] / rate
+    print(f"\nper-candidate Kabsch loop: {rate:,.0f} pairs/s on {sub.size} candidates")
+    print(
+        f"  scaled to the exhaustive search's {grid_info['windows']:,} candidates: {loop_t:,.0f} s"
+    )
+
+    # -- time against library size
+    print("\nmatch time against library size (warm, median of 3; cold includes the index):")
+    per_size = {}
+    for k in sizes:
+        lb = libs[k]
+        t0 = time.perf_counter()
+        lb.match(path, machine=machine.name, eps=EPS)
+        c = time.perf_counter() - t0
+        w, m_k = timed(lambda lb=lb: lb.match(path, machine=machine.name, eps=EPS))
+        per_size[k] = w
+        print(
+            f"  {k:5d} primitives: warm {w:.3f} s, cold {c:.3f} s, "
+            f"{len(m_k.segments)} segments, {m_k.info['probes']} probes"
+        )
+    growth = per_size[1000] / per_size[10]
+    print(f"  1,000 vs 10 primitives: x{growth:.1f} time for x100 library (linear would be x100)")
+
+    print("\n| figure | value | baseline | ratio | command |")
+    print("|---|---|---|---|---|")
+    cmd = "`python benchmarks/bench_match.py`"
+    print(
+        f"| match, 1,000 prims x 2,000 samples, 2,400-sample path (warm) | {warm:.2f} s | "
+        f"per-candidate Kabsch loop {loop_t:,.0f} s (scaled) | {loop_t / warm:,.0f}x | {cmd} |"
+    )
+    print(
+        f"| match, same, cold (index build) | {cold:.2f} s | exhaustive grid {k_ex} prims "
+        f"{grid_t:.0f} s | {grid_t / fast_t:,.0f}x vs {fast_t:.2f} s | {cmd} |"
+    )
+    print(
+        f"| match time, 10 -> 1,000 prims | x{growth:.1f} | linear x100 | "
+        f"{100 / growth:.0f}x better | {cmd} |"
+    )
+
+
+if __name__ == "__main__":
+    main()
