@@ -145,6 +145,7 @@ def _lanczos_max(op, n: int, rng, steps: int) -> float:
     q = rng.standard_normal(n)
     basis[:, 0] = q / np.linalg.norm(q)
     size = k
+    last = None
     for j in range(k):
         v = op.T @ (op @ basis[:, j])
         alpha[j] = basis[:, j] @ v
@@ -156,5 +157,14 @@ def _lanczos_max(op, n: int, rng, steps: int) -> float:
             size = j + 1
             break
         basis[:, j + 1] = v / beta[j]
+        if (j + 1) % 25 == 0:
+            # the top Ritz value only grows; stop once it has settled to rounding
+            top = linalg.eigvalsh_tridiagonal(
+                alpha[: j + 1], beta[:j], select="i", select_range=(j, j)
+            )[0]
+            if last is not None and top - last <= 1e-13 * abs(top):
+                size = j + 1
+                break
+            last = top
     ritz = linalg.eigvalsh_tridiagonal(alpha[:size], beta[: size - 1])
     return float(np.sqrt(max(ritz[-1], 0.0)))
