@@ -416,3 +416,44 @@ def test_invert_bad_input():
         invert(m, np.zeros((5, 2)))
     with pytest.raises(InputError, match="method 'lifted' solves a dense n x n system"):
         invert(m, np.zeros((6001, 3)), method="lifted")
+
+
+# ----------------------------------------------------------------------------- properties
+
+
+@st.composite
+def _stable_tf(draw):
+    """A random proper transfer function with poles in the closed left half plane (at most
+    one integrator), real or complex pairs."""
+    n_real = draw(st.integers(0, 2))
+    n_pair = draw(st.integers(0, 1))
+    integrator = draw(st.booleans())
+    poles = [-draw(st.floats(0.5, 50.0)) for _ in range(n_real)]
+    for _ in range(n_pair):
+        sigma, omega = draw(st.floats(0.5, 20.0)), draw(st.floats(0.5, 30.0))
+        poles += [complex(-sigma, omega), complex(-sigma, -omega)]
+    if integrator or not poles:
+        poles.append(0.0)
+    den = np.real(np.poly(poles))
+    n_num = draw(st.integers(1, len(den)))
+    num = [draw(st.floats(-3.0, 3.0)) for _ in range(n_num)]
+    if abs(num[0]) < 1e-3:
+        num[0] = 1.0
+    return num, den.tolist()
+
+
+@given(_stable_tf(), st.sampled_from([None, {"kp": 0.5, "ki": 0.1}]))
+@settings(max_examples=30, deadline=None)
+def test_random_machines_round_trip_and_match_dlsim(tf, pid):
+    try:
+        m = Machine("rand", 0.005, ["x"], {"x": tf}, None if pid is None else {"x": pid})
+    except InputError as exc:
+        # a random PID may not stabilise a random plant: the message says so
+        assert "asymptotically stable closed loop" in str(exc)
+        return
+    assert Machine.from_dict(json.loads(json.dumps(m.to_dict()))) == m
+    u = np.random.default_rng(4).standard_normal((400, 1))
+    A, B, C, D = _closed_loop_ss(m, 0)
+    _, y_ref, _ = signal.dlsim((A, B, C, D, m.dt), np.column_stack([u[:, 0], 0 * u[:, 0]]))
+    y = m.simulate(u)
+    np.testing.assert_allclose(y[:, 0], y_ref[:, 0], rtol=0, atol=1e-9 * (1 + np.abs(y_ref).max()))
