@@ -17,11 +17,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy import signal
+from scipy import linalg, signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from primlib.ilc import learn  # noqa: E402
 from primlib.plant import Machine, max_singular_value, toeplitz_operator  # noqa: E402
+from primlib.plant._pid import pid_polynomials  # noqa: E402
 
 N = 20_000
 REPEAT_FAST = 50
@@ -98,7 +100,57 @@ def main() -> int:
     op_big = toeplitz_operator(xyz.impulse_response(n_big)[:, 0])
     t_big, s_big = _median(lambda: max_singular_value(op_big, method="lanczos"), 3)
     print(f"sigma_max at n = {n_big} (no dense baseline, 3.2 GB): {t_big * 1e3:.0f} ms")
+    _bench_learn(xyz)
     return 0
+
+
+def _dense_learn(machine, ref, law, gains, iterations):
+    """Slow path: the textbook lifted iteration with dense matrices, u_r += L (y_r - G u_r)."""
+    n = ref.shape[0]
+    T = machine.lifted(n)
+    u = np.zeros_like(ref)
+    for i in range(machine.dim):
+        r = int(machine.relative_degree[i])
+        G = T[i][r:, : n - r]
+        if law == "norm-optimal":
+            L = np.linalg.solve(G.T @ G + gains["w"][i] * np.eye(n - r), G.T)
+        else:
+            c, den = pid_polynomials(gains["kp"][i], 0.0, gains["kd"][i], 0.0, machine.dt)
+            imp = np.zeros(n - r)
+            imp[0] = 1.0
+            ell = signal.lfilter(c, den, imp)
+            L = linalg.toeplitz(ell, np.r_[ell[0], np.zeros(n - r - 1)])
+        ur = np.zeros(n - r)
+        for _ in range(iterations):
+            ur = ur + L @ (ref[r:, i] - G @ ur)
+        u[: n - r, i] = ur
+        u[n - r :, i] = ur[-1]
+    return u
+
+
+def _bench_learn(xyz):
+    n = 2401  # a 12 s path at 5 ms
+    s = np.linspace(0, 1, n)
+    ref = np.column_stack(
+        [
+            10 * np.sin(np.pi * s) ** 2,
+            10 * (10 * s**3 - 15 * s**4 + 6 * s**5),
+            np.sin(2 * np.pi * s),
+        ]
+    )
+    print(f"learn, 3 axes x {n} samples, 10 iterations (median of 3), vs dense lifted loop")
+    for law in ("pd", "norm-optimal"):
+        t_fast, res = _median(lambda law=law: learn(xyz, ref, law=law, iterations=10), 3)
+        t_slow, u_slow = _median(
+            lambda law=law, g=res.gains, k=res.iterations: _dense_learn(xyz, ref, law, g, k), 1
+        )
+        scale = np.max(np.abs(u_slow))
+        np.testing.assert_allclose(res.u, u_slow, rtol=0, atol=1e-7 * scale)
+        print(
+            f"{law:13s} learn {t_fast * 1e3:7.0f} ms (check included)  "
+            f"dense {t_slow * 1e3:7.0f} ms "
+            f"({t_slow / t_fast:.1f}x)  rms {res.rms_total[0]:.3g} -> {res.rms_total[-1]:.3g}"
+        )
 
 
 if __name__ == "__main__":

@@ -17,8 +17,11 @@ How the two numbers are computed (``LearningCheck.method`` names the way taken):
   n_r <= ``dense_limit``, else by Lanczos on M^T M (300 steps, full reorthogonalisation)
   with M applied through FFTs.
 - Norm-optimal without Q: M = w (G^T G + w I)^-1 is symmetric positive definite, so
-  rho = sigma_max = w / (sigma_min(G)^2 + w) < 1, sigma_min(G) by a dense symmetric
-  eigenvalue solve (the law holds G dense anyway).
+  rho = sigma_max = w / (sigma_min(G)^2 + w) < 1 by construction (``monotonic`` is True
+  even when the value rounds to 1.0, as it does on non-minimum-phase axes where
+  sigma_min(G) is exponentially small); sigma_min(G) by a dense symmetric eigenvalue
+  solve for n_r <= ``dense_limit``, else as 1 / sigma_max(G^-1) with G^-1 the Toeplitz
+  matrix of the power series of 1 / g, by Lanczos on its FFT operator.
 - With Q the product is full. Q is a symmetric Toeplitz matrix (the zero-padded
   filtfilt, see ``_qfilter``). For n_r <= ``dense_limit``: dense product, all eigenvalues
   and the 2-norm. Beyond: the product is applied through FFTs, sigma_max by Lanczos and rho
@@ -142,12 +145,25 @@ def check_norm_optimal(G: np.ndarray, w: float, cho, qfilter, dense_limit: int):
         return w * linalg.cho_solve(cho, x)
 
     if qfilter is None:
-        # G is dense already (the law factors G^T G + w I), so the smallest eigenvalue of
-        # G^T G costs about as much again; iterative estimates creep towards the cluster of
-        # small singular values (high frequencies) far too slowly to be trusted
-        lam_min = float(linalg.eigvalsh(G.T @ G, subset_by_index=[0, 0])[0])
-        value = w / (max(lam_min, 0.0) + w)
-        return value, value, "w / (sigma_min(G)^2 + w), dense eigvalsh"
+        if n <= dense_limit:
+            lam_min = float(linalg.eigvalsh(G.T @ G, subset_by_index=[0, 0])[0])
+            value = w / (max(lam_min, 0.0) + w)
+            return value, value, "w / (sigma_min(G)^2 + w), dense eigvalsh"
+        # sigma_min(G) = 1 / sigma_max(G^-1); G^-1 is lower-triangular Toeplitz too, its
+        # first column the power series of 1 / g (one IIR filter); Lanczos on its FFT
+        # operator. On a non-minimum-phase axis that series grows geometrically and
+        # sigma_min(G)^2 underflows against w: the value rounds to 1 (still < 1 exactly)
+        imp = np.zeros(n)
+        imp[0] = 1.0
+        with np.errstate(over="ignore", invalid="ignore"):
+            inv_col = signal.lfilter([1.0], G[:, 0], imp)
+        if np.all(np.isfinite(inv_col)) and np.max(np.abs(inv_col)) < 1e30:
+            s_inv = max_singular_value(toeplitz_operator(inv_col), method="lanczos")
+            lam_min = 1.0 / s_inv**2
+        else:  # sigma_max(G^-1) >= 1e30: sigma_min(G)^2 <= 1e-60, far below any w
+            lam_min = 0.0
+        value = w / (lam_min + w)
+        return value, value, "w / (sigma_min(G)^2 + w), Lanczos on the Toeplitz inverse"
     if n <= dense_limit:
         M = qfilter.matrix(n) @ apply(np.eye(n))
         return (

@@ -331,7 +331,8 @@ def _run_check(axes, law, q, n, dense_limit, h) -> LearningCheck:
     return LearningCheck(
         spectral_radius=max(rhos),
         max_singular_value=max(sigmas),
-        monotonic=max(sigmas) < 1.0,
+        # norm-optimal without Q contracts by construction (w > 0, h[r] != 0)
+        monotonic=max(sigmas) < 1.0 or (law == "norm-optimal" and q is None),
         spectral_radius_axes=tuple(rhos),
         max_singular_value_axes=tuple(sigmas),
         method=method,
