@@ -107,6 +107,15 @@ def test_known_divergent_gain_warns_and_stops():
     assert len(res.inputs) < 11
 
 
+def test_callback_sees_every_trial():
+    seen = []
+    res = learn(
+        XYZ, _path(XYZ, 201), law="pd", iterations=3, callback=lambda k, r: seen.append((k, r))
+    )
+    assert [k for k, _ in seen] == [0, 1, 2, 3]
+    np.testing.assert_array_equal(np.array([r for _, r in seen]), res.rms)
+
+
 def test_tol_stops():
     ref = _path(XYZ, 301)
     res = learn(XYZ, ref, law="norm-optimal", iterations=20, tol=1e-2)

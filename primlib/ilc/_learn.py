@@ -388,6 +388,7 @@ def learn(
     q_order: int = 2,
     dense_limit: int = 400,
     contour: bool | None = None,
+    callback=None,
 ) -> ILCResult:
     """Iterative learning control of a reference on a machine, all axes in parallel.
 
@@ -420,6 +421,9 @@ def learn(
     contour : bool, optional
         Record the RMS contour error per trial (``primlib.contour.contour_error`` on the
         reference samples; needs d >= 2). None: when that package is installed and d >= 2.
+    callback : callable, optional
+        Called after every trial as ``callback(trial, rms)`` with the trial number (0 for
+        ``u0``) and the per-axis RMS error, shape (d,) (e.g. to print progress).
 
     Returns
     -------
@@ -507,6 +511,8 @@ def learn(
         if contour_fn is not None:
             ce = contour_fn(ref, t, y_out)
             contours.append(float(np.sqrt(np.mean(ce**2))))
+        if callback is not None:
+            callback(len(inputs) - 1, rms[-1].copy())
 
     y, e = trial(u)
     record(u, y, e)
