@@ -74,6 +74,7 @@ _COMMAND_MODULES: list[str] = [
     "_learn",
     "_reproduce_pdccilc",
     "_reproduce_cee",
+    "_match",
 ]
 
 
