@@ -180,8 +180,8 @@ def refine(
     comes from its cubic interpolant. Each step solves the linearised problem exactly under
     0 ≤ x0, x1 ≤ n − 1 and the time-scale range lo ≤ x1 − x0 ≤ hi (:func:`_qp2`), and is
     accepted only when the cost decreases (Levenberg damping otherwise). Stops at
-    convergence, as soon as the RMSD at the refinement points is below ``target``, or when
-    it stalls (a step gaining < 10 %) at over 4·target.
+    convergence (60 evaluations at most) or as soon as the RMSD at the refinement points
+    is below ``target``.
     """
     off = int(bank.offsets[cand.prim])
     n_p = int(bank.offsets[cand.prim + 1]) - off
@@ -248,8 +248,6 @@ def refine(
                 break
         if not improved or moved < 1e-6 or gain < 1e-12 * cost:
             break
-        if stop > 0 and gain < 0.1 * cost and cost > 16.0 * stop:
-            break  # stalled at over 4·target: this seed's basin does not reach the target
     return Candidate(cand.prim, float(z[0]), float(z[1]), cand.score)
 
 
@@ -263,6 +261,31 @@ def clamp(bank: BankArrays, cand: Candidate, duration: float, opts: SearchOption
     dur = min(max(cand.x1 - cand.x0, lo), hi)
     x0 = min(max(cand.x0, 0.0), n_p - 1.0 - dur)
     return Candidate(cand.prim, x0, x0 + dur, cand.score)
+
+
+def _sym_eigvals(a: np.ndarray) -> np.ndarray:
+    """Eigenvalues, descending, of symmetric (m, d, d) matrices, d in {2, 3}, in closed form
+    (the trigonometric solution of the characteristic cubic for d = 3)."""
+    if a.shape[-1] == 2:
+        mid = 0.5 * (a[:, 0, 0] + a[:, 1, 1])
+        rad = np.hypot(0.5 * (a[:, 0, 0] - a[:, 1, 1]), a[:, 0, 1])
+        return np.stack([mid + rad, mid - rad], axis=1)
+    q = (a[:, 0, 0] + a[:, 1, 1] + a[:, 2, 2]) / 3.0
+    p1 = a[:, 0, 1] ** 2 + a[:, 0, 2] ** 2 + a[:, 1, 2] ** 2
+    p2 = (a[:, 0, 0] - q) ** 2 + (a[:, 1, 1] - q) ** 2 + (a[:, 2, 2] - q) ** 2 + 2.0 * p1
+    p = np.sqrt(p2 / 6.0)
+    safe = np.where(p > 0, p, 1.0)
+    b = (a - q[:, None, None] * np.eye(3)) / safe[:, None, None]
+    det = (
+        b[:, 0, 0] * (b[:, 1, 1] * b[:, 2, 2] - b[:, 1, 2] * b[:, 2, 1])
+        - b[:, 0, 1] * (b[:, 1, 0] * b[:, 2, 2] - b[:, 1, 2] * b[:, 2, 0])
+        + b[:, 0, 2] * (b[:, 1, 0] * b[:, 2, 1] - b[:, 1, 1] * b[:, 2, 0])
+    )
+    phi = np.arccos(np.clip(det / 2.0, -1.0, 1.0)) / 3.0
+    l1 = q + 2.0 * p * np.cos(phi)
+    l3 = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
+    l2 = 3.0 * q - l1 - l3
+    return np.stack([l1, l2, l3], axis=1)
 
 
 def _scale_grid(lo: float, hi: float, ratio: float) -> np.ndarray:
@@ -306,8 +329,9 @@ def _cumsums(x: np.ndarray):
 
 @dataclass
 class _Stats:
-    windows: int = 0
-    scored: int = 0
+    windows: int = 0  # candidates considered
+    bounded: int = 0  # candidates past the cheap first bound (index search)
+    scored: int = 0  # candidates scored exactly
     queries: int = 0
 
 
@@ -439,6 +463,76 @@ class ArcIndex:
     levels: tuple[_Level, ...]
     x_all: np.ndarray  # sample index of every stored sample, for arc -> time
     garc_all: np.ndarray  # global arc coordinate of every stored sample
+    cache: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def arc_to_sample(self, g: np.ndarray) -> np.ndarray:
+        """Fractional sample index at global arc coordinates g (linear between samples)."""
+        i = np.clip(np.searchsorted(self.garc_all, g) - 1, 0, self.garc_all.size - 2)
+        g0, g1 = self.garc_all[i], self.garc_all[i + 1]
+        f = np.clip((g - g0) / np.where(g1 > g0, g1 - g0, 1.0), 0.0, 1.0)
+        return self.x_all[i] + f * (self.x_all[i + 1] - self.x_all[i])
+
+    def half_moments(self, jb: int, dil: int, k: int, k1: int):
+        """Centroids and Σ|p − p̄|² of both halves (first k1 points, last k − k1) of every
+        window {m + i·dil, i < k} of level jb, m = 0, 1, ...
+
+        Differences of per-residue cumulative sums, all windows in a few array passes (no
+        gathering); the sums are built once per (level, dilation). Returns
+        (c1 (M, d), c2 (M, d), e1 (M,), e2 (M,)).
+        """
+        key = ("g", jb, dil)
+        lv = self.levels[jb]
+        m, d = lv.pts.shape
+        if key not in self.cache:
+            rows = -(-m // dil)
+            x = np.zeros((rows * dil, d + 1))
+            x[:m, :d] = lv.pts
+            x[:m, d] = np.einsum("ij,ij->i", lv.pts, lv.pts)
+            c = np.zeros((rows + 1, dil, d + 1))
+            np.cumsum(x.reshape(rows, dil, d + 1), axis=0, out=c[1:])
+            self.cache[key] = c
+        c = self.cache[key]
+        if c.shape[0] <= k:
+            e = np.zeros((0, d))
+            return e, e, np.zeros(0), np.zeros(0)
+        top = c.shape[0] - k
+        h1 = (c[k1 : k1 + top] - c[:top]).reshape(-1, d + 1)
+        h2 = (c[k : k + top] - c[k1 : k1 + top]).reshape(-1, d + 1)
+        k2 = k - k1
+        c1, c2 = h1[:, :d] / k1, h2[:, :d] / k2
+        e1 = h1[:, d] - k1 * np.einsum("ij,ij->i", c1, c1)
+        e2 = h2[:, d] - k2 * np.einsum("ij,ij->i", c2, c2)
+        return c1, c2, e1, e2
+
+    def window_sums(self, jb: int, dil: int, w: np.ndarray, k: int):
+        """First and second moments of the windows {w + i·dil, i < k} of level jb.
+
+        Returns (Σp (m, d), Σ p pᵀ (m, d, d)) from per-residue cumulative sums, built once
+        per (level, dilation) and kept.
+        """
+        key = (jb, dil)
+        lv = self.levels[jb]
+        m, d = lv.pts.shape
+        if key not in self.cache:
+            rows = -(-m // dil)
+            x = np.zeros((rows * dil, d))
+            x[:m] = lv.pts
+            cols = [x] + [x[:, a : a + 1] * x[:, a:] for a in range(d)]
+            y = np.concatenate(cols, axis=1).reshape(rows, dil, -1)
+            c = np.zeros((rows + 1, dil, y.shape[2]))
+            np.cumsum(y, axis=0, out=c[1:])
+            self.cache[key] = c
+        c = self.cache[key]
+        qd, r = np.divmod(w, dil)
+        sums = c[qd + k, r] - c[qd, r]
+        s1 = sums[:, :d]
+        s2 = np.empty((w.size, d, d))
+        col = d
+        for a in range(d):
+            for b in range(a, d):
+                s2[:, a, b] = s2[:, b, a] = sums[:, col]
+                col += 1
+        return s1, s2
 
     @classmethod
     def build(cls, bank: BankArrays, points_per_sample: float = 0.25) -> ArcIndex:
@@ -494,9 +588,10 @@ class IndexSearch:
     bank: BankArrays
     opts: SearchOptions
     index: ArcIndex | None = None
-    target_points: int = 24
+    target_points: int = 16
     phase_bits: int = 1
-    chunk: int = 4096
+    pool: int = 2
+    chunk: int = 8192
     stats: _Stats = field(default_factory=_Stats)
 
     def __post_init__(self) -> None:
@@ -504,29 +599,6 @@ class IndexSearch:
             self.index = ArcIndex.build(self.bank)
         self._grid = GridSearch(self.bank, self.opts, self.stats)
         self._fine: dict[int, ArcIndex] = {}
-        self._dcs: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
-
-    def _moments(self, lv: _Level, w: np.ndarray, k: int, dil: int, per_axis: bool):
-        """Σ|p − p̄|² of the dilated windows {w + i·dil, i < k} from per-residue cumsums."""
-        if dil == 1:
-            return _window_moments(lv.cs, lv.cs2, w, k, per_axis)
-        key = (id(lv), dil)
-        if key not in self._dcs:
-            m, d = lv.pts.shape
-            rows = -(-m // dil)
-            x = np.zeros((rows * dil, d))
-            x[:m] = lv.pts
-            x = x.reshape(rows, dil, d)
-            c1 = np.zeros((rows + 1, dil, d))
-            np.cumsum(x, axis=0, out=c1[1:])
-            c2 = np.zeros_like(c1)
-            np.cumsum(x * x, axis=0, out=c2[1:])
-            self._dcs = {key: (c1, c2)}  # one at a time: probes reuse the same level
-        c1, c2 = self._dcs[key]
-        qd, r = np.divmod(w, dil)
-        sx = c1[qd + k, r] - c1[qd, r]
-        sp = (c2[qd + k, r] - c2[qd, r]) - sx * sx / k
-        return sp if per_axis else sp.sum(axis=1)
 
     def _index_for(self, ell: float) -> ArcIndex:
         """The index, or a finer one (built once, on demand) for pieces short in arc length.
@@ -588,15 +660,50 @@ class IndexSearch:
         m_all = lv.pts.shape[0] - span + 1
         if m_all <= 0:
             return []
+        m = self.opts.seeds
+        gate = 3.0 * eps + lv.step
+        # bound 1, every window, from cumulative sums: split P and Q into halves (k1, k2
+        # points). Under the optimal motion the error energy K·rmsd² splits into each half's
+        # centroid error (k_h δ_h²) and its centred part (≥ k_h (g_h(P) − g_h(Q))², the
+        # radius-of-gyration bound, Cauchy–Schwarz on eq. (2)); the distance D between the
+        # half centroids is rigid, so δ1 + δ2 ≥ |D(P) − D(Q)| and min k1δ1² + k2δ2² =
+        # k1k2/K·ΔD². Hence rmsd² ≥ (k1k2/K·ΔD² + Σ_h k_h Δg_h²)/K.
+        k1 = k // 2
+        k2 = k - k1
+        c1, c2, e1, e2 = idx.half_moments(jb, dil, k, k1)
+        c1, c2, e1, e2 = c1[:m_all], c2[:m_all], e1[:m_all], e2[:m_all]
+        dq_ = np.linalg.norm(qc[:k1].mean(axis=0) - qc[k1:].mean(axis=0))
+        gq1 = math.sqrt(float(np.sum((qc[:k1] - qc[:k1].mean(axis=0)) ** 2)) / k1)
+        gq2 = math.sqrt(float(np.sum((qc[k1:] - qc[k1:].mean(axis=0)) ** 2)) / k2)
+        dd = np.linalg.norm(c1 - c2, axis=1) - dq_
+        dg1 = np.sqrt(np.maximum(e1, 0.0) / k1) - gq1
+        dg2 = np.sqrt(np.maximum(e2, 0.0) / k2) - gq2
+        lb1 = np.sqrt((k1 * k2 / k * dd * dd + k1 * dg1 * dg1 + k2 * dg2 * dg2) / k)
+        lb1 -= 1e-7 * (g_q + lb1)  # round-off of the cumulative sums
         # chord lengths under-estimate arc length a little (more for the stored samples than
         # for the densely sampled query): let a piece reach a primitive's very end
-        w = np.flatnonzero(lv.left[:m_all] >= ell - max(step, 0.02 * ell))
+        valid = lv.left[:m_all] >= ell - max(step, 0.02 * ell)
         self.stats.queries += 1
-        self.stats.windows += w.size
+        self.stats.windows += int(np.count_nonzero(valid))
+        w = np.flatnonzero(valid & (lb1 < gate * (1 + 1e-9)))
+        self.stats.bounded += w.size
         if w.size == 0:
             return []
-        sp = self._moments(lv, w, k, dil, per_axis)
-        lb = np.abs(np.sqrt(np.maximum(np.sum(sp, axis=1) if per_axis else sp, 0.0) / k) - g_q)
+        sv_q = np.sqrt(np.maximum(_sym_eigvals((qc.T @ qc)[None]), 0.0))[0]
+
+        def bound2(sel: np.ndarray):
+            # the principal values of the windows' scatter matrices. von Neumann:
+            # tr(R P̃ᵀQ̃) ≤ Σ s_i(P̃) s_i(Q̃) for any orthogonal R, so rmsd² ≥
+            # Σ (s_i(P̃) − s_i(Q̃))² / K in every rotation mode (minus round-off)
+            s1, s2 = idx.window_sums(jb, dil, w[sel], k)
+            scat = s2 - s1[:, :, None] * s1[:, None, :] / k
+            diag = np.diagonal(scat, axis1=1, axis2=2)
+            sv_p = np.sqrt(np.maximum(_sym_eigvals(scat), 0.0))
+            lb = np.sqrt(np.sum((sv_p - sv_q) ** 2, axis=1) / k) - 1e-7 * (
+                g_q + np.sqrt(np.sum(sv_p**2, axis=1) / k)
+            )
+            return lb, (diag if per_axis else diag.sum(axis=1))
+
         win_view = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil]
 
         dq = (b - a) * path.duration / self.bank.dt
@@ -604,9 +711,17 @@ class IndexSearch:
 
         def in_range(sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             # the window's duration follows from its arc length; keep the time scales in
-            # range (10 % slack: the refinement enforces the range exactly)
-            x_end = np.interp(lv.garc[w[sel]] + ell, idx.garc_all, idx.x_all)
-            scale = (x_end - lv.x[w[sel]]) / dq
+            # range (10 % slack: the refinement enforces the range exactly). The end lies
+            # ell / step level points on, in the same primitive unless near its end.
+            ws = w[sel]
+            e = ws + ell / lv.step
+            i0 = np.minimum(np.floor(e).astype(np.int64), lv.pts.shape[0] - 2)
+            f = e - i0
+            inside = lv.prim[np.minimum(i0 + 1, lv.pts.shape[0] - 1)] == lv.prim[ws]
+            x_end = lv.x[i0] + f * (lv.x[i0 + 1] - lv.x[i0])
+            if not np.all(inside):
+                x_end[~inside] = idx.arc_to_sample(lv.garc[ws[~inside]] + ell)
+            scale = (x_end - lv.x[ws]) / dq
             ok = (scale >= lo / 1.1) & (scale <= hi * 1.1)
             return sel[ok], x_end[ok]
 
@@ -614,47 +729,89 @@ class IndexSearch:
         tau_q = (u - u[0]) / max(u[-1] - u[0], 1e-300)
         x_view = sliding_window_view(lv.x, span)[:, ::dil]
 
-        def score(sel: np.ndarray) -> np.ndarray:
-            s_ = np.einsum("mak,kb->mab", win_view[w[sel]], qc, optimize=True)
-            sq_ = np.broadcast_to(sq, (sel.size, 3)) if per_axis else sq
-            shape = rmsd_from_moments(s_, sp[sel], sq_, k, mode)
+        def combine(shape: np.ndarray, xw: np.ndarray) -> np.ndarray:
             # a normalised-time error δτ at an arc sample moves the uniform-time sample by
             # about ℓ·δτ along the curve: add it so pieces of the same shape traversed with
             # another speed profile rank below the right one (never below the shape RMSD,
-            # so the lower bound still holds)
-            xw = x_view[w[sel]]
-            span = xw[:, -1] - xw[:, 0]
-            still = span <= 1e-9  # a stationary stretch: no speed profile to compare
-            tau_w = (xw - xw[:, :1]) / np.where(still, 1.0, span)[:, None]
+            # so the lower bounds still hold)
+            dur = xw[:, -1] - xw[:, 0]
+            still = dur <= 1e-9  # a stationary stretch: no speed profile to compare
+            tau_w = (xw - xw[:, :1]) / np.where(still, 1.0, dur)[:, None]
             tau_w[still] = tau_q
-            timing = ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1))
-            return np.hypot(shape, timing)
+            return np.hypot(shape, ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1)))
 
-        m = self.opts.seeds
-        gate = 3.0 * eps + lv.step
-        done = np.zeros(w.size, bool)
-        kept: list[Candidate] = []
+        def score(sel: np.ndarray, sp: np.ndarray) -> np.ndarray:
+            s_ = np.einsum("mak,kb->mab", win_view[w[sel]], qc, optimize=True)
+            sq_ = np.broadcast_to(sq, (sel.size, 3)) if per_axis else sq
+            return combine(rmsd_from_moments(s_, sp, sq_, k, mode), x_view[w[sel]])
+
+        def score_shifted(start: np.ndarray) -> np.ndarray:
+            # windows starting at fractional base-level positions (linear interpolation
+            # between the arc samples); +inf where a window leaves its primitive
+            pos = start[:, None] + np.arange(k) * dil
+            i0 = np.clip(np.floor(pos).astype(np.int64), 0, lv.pts.shape[0] - 2)
+            f = np.clip(pos - i0, 0.0, 1.0)
+            ok = (start >= 0) & (lv.prim[i0[:, 0]] == lv.prim[i0[:, -1] + 1])
+            pts = lv.pts[i0] * (1.0 - f[..., None]) + lv.pts[i0 + 1] * f[..., None]
+            pc = pts - pts.mean(axis=1, keepdims=True)
+            s_ = np.einsum("mka,kb->mab", pc, qc)
+            sp_ = (pc * pc).sum(axis=1) if per_axis else (pc * pc).sum(axis=(1, 2))
+            sq_ = np.broadcast_to(sq, (start.size, 3)) if per_axis else sq
+            xw = lv.x[i0] * (1.0 - f) + lv.x[i0 + 1] * f
+            r = combine(rmsd_from_moments(s_, sp_, sq_, k, mode), xw)
+            return np.where(ok, r, np.inf), xw[:, 0]
+
+        # best first: windows in increasing order of bound 1, bound 2 on each chunk, exact
+        # scores for what passes, until the next bound reaches the pool's worst score (or
+        # the gate): the pool is then exactly the best n_pool distinct windows of scoring
+        # every window
+        n_pool = self.pool * m
+        cand = np.arange(w.size)[np.argsort(lb1[w], kind="stable")]
+        lbw = lb1[w]
         pool: list[Candidate] = []
-        todo = np.flatnonzero(lb < gate)
-        if todo.size > self.chunk:
-            todo = todo[np.argpartition(lb[todo], self.chunk - 1)[: self.chunk]]
-        while todo.size:
-            done[todo] = True
-            todo, x_end = in_range(todo)
-            r = score(todo)
+        where: dict[tuple[int, float], int] = {}
+        tau = gate
+        pos = 0
+        while pos < cand.size and lbw[cand[pos]] < tau:
+            todo = cand[pos : pos + self.chunk]
+            todo = todo[lbw[todo] < tau]
+            pos += self.chunk
+            lb2, sp = bound2(todo)
+            live = lb2 < tau
+            todo, sp = todo[live], sp[live]
+            keep, x_end = in_range(todo)
+            sp = sp[np.isin(todo, keep, assume_unique=True)]
+            todo = keep
+            r = score(todo, sp)
             self.stats.scored += todo.size
-            order = np.argsort(r)[: 8 * m]
+            order = np.argsort(r)[:n_pool]
             order = order[r[order] < gate]
-            pool += [
-                Candidate(
-                    int(lv.prim[w[todo[t]]]), float(lv.x[w[todo[t]]]), float(x_end[t]), float(r[t])
-                )
-                for t in order
-            ]
-            kept = _suppress(pool, m)
-            pool = kept + [c for c in pool if c not in kept][: 8 * m]
-            tau = kept[-1].score if len(kept) == m else gate
-            todo = np.flatnonzero(~done & (lb < tau))
-            if todo.size > self.chunk:
-                todo = todo[np.argsort(lb[todo])[: self.chunk]]
+            for t in order:
+                c = Candidate(int(lv.prim[w[todo[t]]]), float(lv.x[w[todo[t]]]), float(x_end[t]),
+                              float(r[t]))  # fmt: skip
+                where[(c.prim, c.x0)] = int(w[todo[t]])
+                pool.append(c)
+            pool = _suppress(pool, n_pool)
+            tau = pool[-1].score if len(pool) == n_pool else gate
+        if not pool:
+            return []
+        # the window grid puts a stored copy up to half a base step from a window start:
+        # re-score the pool at sub-step shifts and keep each window's best
+        shifts = np.linspace(-0.5, 0.5, 5)
+        base = np.array([where[(c.prim, c.x0)] for c in pool], dtype=float)
+        starts = (base[:, None] + shifts).ravel()
+        r, x0 = score_shifted(starts)
+        r, x0 = r.reshape(len(pool), -1), x0.reshape(len(pool), -1)
+        best = np.argmin(r, axis=1)
+        rows = np.arange(len(pool))
+        g0 = lv.garc[base.astype(np.int64)] + shifts[best] * lv.step
+        x_end = idx.arc_to_sample(g0 + ell)
+        kept = _suppress(
+            [
+                Candidate(c.prim, float(x0[i, best[i]]), float(x_end[i]), float(r[i, best[i]]))
+                for i, c in zip(rows, pool, strict=True)
+                if np.isfinite(r[i, best[i]])
+            ],
+            m,
+        )
         return kept

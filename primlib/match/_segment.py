@@ -97,20 +97,38 @@ def _make_searcher(bank: BankArrays, opts: SearchOptions, search: str):
     return IndexSearch(bank, opts, index=index)
 
 
-def _probe(searcher, bank, path, a, b, eps, opts, min_samples) -> _Found | None:
-    """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?"""
+def _try(bank, path, a, b, eps, opts, seed, kc) -> _Found | None:
+    seed = clamp(bank, seed, (b - a) * path.duration, opts)
+    r0 = piece_rmsd(bank, seed, path, a, b, kc, opts.mode).rmsd
+    if r0 < eps:
+        return _Found(seed, r0, False)
+    ref = refine(bank, seed, path, a, b, opts, target=0.5 * eps)
+    r1 = piece_rmsd(bank, ref, path, a, b, kc, opts.mode).rmsd
+    if r1 < eps:
+        return _Found(ref, r1, True)
+    return None
+
+
+def _probe(searcher, bank, path, a, b, eps, opts, min_samples, hint=None) -> _Found | None:
+    """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?
+
+    ``hint`` (a match found for [a, b'] in this binary search) is tried first, stretched to
+    the new length at the same time scale: a success there is a match like any other; the
+    search runs when it fails.
+    """
     if (b - a) * (path.n - 1) < min_samples - 1 - 1e-9:
         return None
     kc = path.confirm_points(a, b)
+    if hint is not None:
+        cand, b_old = hint
+        x1 = cand.x0 + (cand.x1 - cand.x0) * (b - a) / (b_old - a)
+        found = _try(bank, path, a, b, eps, opts, Candidate(cand.prim, cand.x0, x1, 0.0), kc)
+        if found is not None:
+            return found
     for seed in searcher.seeds(path, a, b, eps):
-        seed = clamp(bank, seed, (b - a) * path.duration, opts)
-        r0 = piece_rmsd(bank, seed, path, a, b, kc, opts.mode).rmsd
-        if r0 < eps:
-            return _Found(seed, r0, False)
-        ref = refine(bank, seed, path, a, b, opts, target=0.5 * eps)
-        r1 = piece_rmsd(bank, ref, path, a, b, kc, opts.mode).rmsd
-        if r1 < eps:
-            return _Found(ref, r1, True)
+        found = _try(bank, path, a, b, eps, opts, seed, kc)
+        if found is not None:
+            return found
     return None
 
 
@@ -230,11 +248,13 @@ def segment_path(
         step = last - ia
         iv = last
         best: tuple[int, _Found] | None = None
+        hint = None
         while True:
             probes += 1
-            found = _probe(searcher, bank, path, ia / last, iv / last, eps, opts, min_samples)
+            found = _probe(searcher, bank, path, ia / last, iv / last, eps, opts, min_samples, hint)
             if found is not None:
                 best = (iv, found)
+                hint = (found.cand, iv / last)
                 if iv == last:
                     break
             if step <= sig:
@@ -263,6 +283,7 @@ def segment_path(
         "search": search,
         "probes": probes,
         "windows": stats.windows,
+        "bounded": stats.bounded,
         "scored": stats.scored,
         "queries": stats.queries,
         "index_seconds": t_index,

@@ -1,0 +1,140 @@
+"""``primlib match`` through CliRunner, read back through the library and the files."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from scipy.spatial.transform import Rotation
+
+from primlib.cli import main
+from primlib.io import read_signal_csv, write_path_csv
+from primlib.nurbs import Trajectory
+from primlib.plant import Machine, invert
+from primlib.store import Library
+
+ROOT = Path(__file__).resolve().parents[1]
+EPS = 0.05
+
+
+def _primitive(rng, dt: float, n: int = 401) -> Trajectory:
+    m, p = 12, 3
+    ctrl = np.cumsum(rng.normal(size=(m, 3)) * 10.0, axis=0)
+    knots = np.concatenate([np.zeros(p), np.linspace(0, 1, m - p + 1), np.ones(p)])
+    return Trajectory.from_definition(p, knots, ctrl, None, (n - 1) * dt)
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    """A library of 4 primitives (signals by model inversion) and a path of 2 pieces."""
+    tmp = tmp_path_factory.mktemp("match")
+    db = tmp / "lib.duckdb"
+    machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    rng = np.random.default_rng(0)
+    trajs = [_primitive(rng, machine.dt) for _ in range(4)]
+    with Library(db) as lib:
+        lib.add_machine(machine)
+        items = []
+        for i, tr in enumerate(trajs):
+            pts = tr.sample(machine.dt)
+            items.append((tr, invert(machine, pts - pts[0]), f"prim-{i}", None))
+        ids = lib.add_many(items, machine.name)
+        empty = Machine.from_dict({**machine.to_dict(), "name": "empty"})
+        lib.add_machine(empty)
+    # path: piece of prim 1 (v 0.1-0.5, as stored) then prim 3 (v 0.3-0.8, 1.25x slower)
+    dt = machine.dt
+    parts, last = [], np.zeros(3)
+    for row, v0, v1, n in ((1, 0.1, 0.5, 161), (3, 0.3, 0.8, 251)):
+        pts = trajs[row].at(np.linspace(v0, v1, n))
+        pts = pts @ Rotation.from_euler("zyx", [30 * row, 10, -20], degrees=True).as_matrix().T
+        pts += last - pts[0]
+        last = pts[-1]
+        parts.append(pts if not parts else pts[1:])
+    pts = np.concatenate(parts)
+    csv = tmp / "new.csv"
+    write_path_csv(csv, np.arange(len(pts)) * dt, pts)
+    flat = tmp / "flat.csv"
+    write_path_csv(flat, np.arange(len(pts)) * dt, pts[:, :2])
+    return {"db": db, "csv": csv, "flat": flat, "ids": ids, "tmp": tmp, "n": len(pts)}
+
+
+def _run(setup, *args):
+    return CliRunner().invoke(main, ["--db", str(setup["db"]), "match", *map(str, args)])
+
+
+def test_table_names_every_segment(setup):
+    res = _run(setup, setup["csv"], "--machine", "xyz", "--eps", EPS)
+    assert res.exit_code == 0, res.output
+    out = res.output
+    assert "2 segment(s), 0 unmatched" in out
+    assert f"#{setup['ids'][1]} prim-1" in out and f"#{setup['ids'][3]} prim-3" in out
+    for col in ("path v", "primitive v", "angle", "rmsd"):
+        assert col in out
+
+
+def test_json_reads_back_and_transforms_hold(setup):
+    res = _run(setup, setup["csv"], "--machine", "xyz", "--eps", EPS, "--json")
+    assert res.exit_code == 0, res.output
+    d = json.loads(res.output)
+    segs = d["segments"]
+    assert [s["primitive"] for s in segs] == [setup["ids"][1], setup["ids"][3]]
+    assert segs[0]["start"] == 0.0 and segs[-1]["end"] == 1.0
+    # the longest prefix within eps may run a few samples past the join (a gentle corner)
+    join = 160 / (setup["n"] - 1)
+    assert join - 1.0 / setup["n"] <= segs[0]["end"] <= join + 0.02
+    assert segs[1]["time_scale"] == pytest.approx(0.5 * 400 / 250, rel=1e-3)
+    assert all(s["rmsd"] < EPS for s in segs)
+    # each declared transform, checked through the stored trajectory and the CSV path
+    with Library(setup["db"], read_only=True) as lib:
+        path = Trajectory.from_csv(setup["csv"])
+        for s in segs:
+            prim = lib.get(s["primitive"]).trajectory
+            u = np.linspace(0, 1, 300)
+            a = path.at(s["start"] + (s["end"] - s["start"]) * u)
+            b = prim.at(s["primitive_start"] + (s["primitive_end"] - s["primitive_start"]) * u)
+            b = b @ np.array(s["rotation"]).T + np.array(s["translation"])
+            # eps plus the NURBS fit tolerance of the CSV path (1e-4 of its extent)
+            dev = np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1)))
+            assert dev < EPS + 2e-4 * path.extent
+
+
+def test_out_writes_the_warm_start_and_plot_a_figure(setup):
+    out = setup["tmp"] / "u0.csv"
+    fig = setup["tmp"] / "match.png"
+    res = _run(setup, setup["csv"], "--machine", "xyz", "--eps", EPS, "--out", out, "--plot", fig)
+    assert res.exit_code == 0, res.output
+    t, u = read_signal_csv(out)
+    assert u.shape == (setup["n"], 3)
+    np.testing.assert_allclose(np.diff(t), 0.005, rtol=1e-9)
+    with Library(setup["db"], read_only=True) as lib:
+        ws = lib.warm_start(Trajectory.from_csv(setup["csv"]), machine="xyz", eps=EPS)
+    np.testing.assert_allclose(u, ws.u, rtol=1e-9, atol=1e-12)
+    assert fig.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    ("args", "msg"),
+    [
+        (["--eps", "0"], "--eps: expected a tolerance > 0, got 0"),
+        (["--eps", "-1"], "--eps: expected a tolerance > 0, got -1"),
+        (["--machine", "nope"], "nope"),
+        (["--machine", "empty"], "no primitive"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(setup, args, msg):
+    base = ["--machine", "xyz"] if "--machine" not in args else []
+    res = _run(setup, setup["csv"], *base, *args)
+    assert res.exit_code == 2
+    assert msg in res.output
+    assert len(res.output.strip().splitlines()) == 1
+
+
+def test_dimension_mismatch_and_nothing_written(setup):
+    out = setup["tmp"] / "never.csv"
+    res = _run(setup, setup["flat"], "--machine", "xyz", "--out", out)
+    assert res.exit_code == 2
+    assert "expected a 3-D path" in res.output and "got 2-D" in res.output
+    assert not out.exists()
+    res2 = _run(setup, setup["csv"], "--machine", "xyz", "--out", setup["tmp"] / "no" / "u.csv")
+    assert res2.exit_code == 2 and "does not exist" in res2.output
