@@ -25,15 +25,22 @@ differ only in how fast they find the seeds:
     exact score of windows whose radius-of-gyration bound already reaches their gate.)
 ``IndexSearch`` (the default, fast)
     A rigid motion and a change of time scale leave the arc-length shape of a piece
-    unchanged, so the library is indexed once by resampling every primitive at uniform arc
-    length (a pyramid of steps Δ₀·2ʲ). A query of arc length ℓ is resampled at the level
-    whose step gives 16–31 points; every window of that level is a candidate whose
-    duration follows from the arc length (no duration grid: the time-scale dimension
-    collapses), filtered to the time-scale range. Windows are scored exactly (Kabsch RMSD
-    of the arc samples) best-first in order of a provable lower bound, the radius-of-
-    gyration difference |g(P) − g(Q)| ≤ rmsd (Cauchy–Schwarz on eq. (2)), until no unscored
-    window's bound is below the m-th best score: the top seeds are exactly those of scoring
-    every window. The benchmark checks that the segmentation equals ``GridSearch``'s.
+    unchanged, so the library is indexed once (:class:`ArcIndex`) by resampling every
+    primitive at uniform arc length, a pyramid of steps Δ₀·2ʲ. A query of arc length ℓ is
+    resampled at the spacing Δ that gives it 16–31 points; the candidates are the windows
+    of that spacing starting at every point of the next finer level (dilated windows), so
+    no duration grid is needed: a window's duration follows from its arc length (the
+    time-scale dimension collapses), filtered to the time-scale range. Each window is scored
+    by the Kabsch RMSD of its arc samples combined with ℓ times the RMS difference of the
+    normalised time at the samples (the speed profile), and windows are scored best-first
+    in order of provable lower bounds of that RMSD — a half-window bound on every window
+    (radii of gyration of both halves and the rigid distance between their centroids, from
+    cumulative sums) and the principal-value bound Σ(s_i(P) − s_i(Q))²/K (von Neumann's
+    trace inequality) on the survivors — until no unscored window's bound is below the
+    pool's worst score or the gate 3ε + Δ/2: the pool is exactly the best windows of
+    scoring them all. The pool is re-scored at sub-step shifts of its windows' starts and
+    the best few distinct windows become the seeds. The benchmark checks that the
+    segmentation equals ``GridSearch``'s.
 """
 
 from __future__ import annotations
@@ -741,7 +748,8 @@ class IndexSearch:
             return np.hypot(shape, ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1)))
 
         def score(sel: np.ndarray, sp: np.ndarray) -> np.ndarray:
-            s_ = np.einsum("mak,kb->mab", win_view[w[sel]], qc, optimize=True)
+            win = win_view[w[sel]]  # (m, d, k), a copy: one matrix product for all S
+            s_ = (win.reshape(-1, k) @ qc).reshape(sel.size, qc.shape[1], qc.shape[1])
             sq_ = np.broadcast_to(sq, (sel.size, 3)) if per_axis else sq
             return combine(rmsd_from_moments(s_, sp, sq_, k, mode), x_view[w[sel]])
 

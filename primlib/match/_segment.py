@@ -13,6 +13,9 @@ copies is cut exactly at its joins. When nothing matches from a cut, the unmatch
 grows by σ, doubling while the failures go on: a sub-sample sliver left by a join between
 samples costs one step, a long stretch nothing matches only log₂ of its length in searches.
 
+Within one binary search, the match found by the last successful probe is tried first on
+the next probe (stretched to its length at the same time scale) before searching.
+
 A probe "matches" when some seed (see ``_search``), refined continuously, has Kabsch RMSD
 below ε against the piece, compared at the path's own samples in the piece (cuts lie on
 samples; 16 points at least) and the primitive at the corresponding uniform times — the RMSD
