@@ -138,3 +138,26 @@ def test_dimension_mismatch_and_nothing_written(setup):
     assert not out.exists()
     res2 = _run(setup, setup["csv"], "--machine", "xyz", "--out", setup["tmp"] / "no" / "u.csv")
     assert res2.exit_code == 2 and "does not exist" in res2.output
+
+
+def test_library_match_api_and_its_errors(setup):
+    from primlib import InputError, NoMatchError, NotFoundError
+    from primlib.match import Match
+
+    path = Trajectory.from_csv(setup["csv"])
+    with Library(setup["db"], read_only=True) as lib:
+        mt = lib.match(path, machine="xyz", eps=EPS)
+        assert isinstance(mt, Match) and mt.machine == "xyz" and mt.eps == EPS
+        assert mt.rotation_mode == "full" and mt.path is path
+        json.dumps(mt.to_dict())  # plain JSON
+        with pytest.raises(InputError, match="eps: expected a tolerance > 0"):
+            lib.match(path, machine="xyz", eps=0.0)
+        with pytest.raises(NotFoundError, match="nope"):
+            lib.match(path, machine="nope", eps=EPS)
+        with pytest.raises(NoMatchError, match="'empty': no primitive stored"):
+            lib.match(path, machine="empty", eps=EPS)
+        flat = Trajectory.from_csv(setup["flat"])
+        with pytest.raises(InputError, match="expected 3-D like machine 'xyz', got 2-D"):
+            lib.match(flat, machine="xyz", eps=EPS)
+        with pytest.raises(InputError, match="rotation"):
+            lib.match(path, machine="xyz", eps=EPS, rotation="spin")

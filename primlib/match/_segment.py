@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from primlib._errors import InputError, NotFoundError
+from primlib._errors import InputError, NoMatchError, NotFoundError
 from primlib.match._bank import BankArrays, as_bank, cubic_at
 from primlib.match._kabsch import ROTATION_MODES
 from primlib.match._search import (
@@ -349,9 +349,11 @@ def match_path(
         raise NotFoundError(f"machine: no machine named {machine!r} in the library") from exc
     if path.dim != mach.dim:
         raise InputError(f"path: expected {mach.dim}-D like machine {machine!r}, got {path.dim}-D")
+    bank = library.bank(machine)
+    if len(bank.offsets) < 2:
+        raise NoMatchError(f"machine {machine!r}: no primitive stored, nothing to match against")
     n = max(int(round(path.duration / mach.dt)) + 1, 2)
     points = path.at(np.linspace(0.0, 1.0, n))
-    bank = library.bank(machine)
     segments, info = segment_path(
         bank, points, path.duration / (n - 1), eps, rotation=rotation, time_scale=time_scale, **kw
     )
