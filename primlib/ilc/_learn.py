@@ -11,8 +11,13 @@ act inside the trial and hold the last learned value.
   (backward-difference derivative, backward-Euler sum, e_s[-1] = 0: the trial starts at
   rest), i.e. the filter L(q^-1) = kp + kd (1 - q^-1) / dt + ki dt / (1 - q^-1) on e_s.
 - ``"norm-optimal"``: u_{j+1} = Q( u_j + (G^T G + w I)^-1 G^T e_s ), G the n_r x n_r lifted
-  model (minimises ||e_{j+1}||^2 + w ||u_{j+1} - u_j||^2 for the model); G^T G + w I is
-  Cholesky-factored once per axis and reused every iteration.
+  model (minimises ||e_{j+1}||^2 + w ||u_{j+1} - u_j||^2 for the model). Two solvers
+  (``solver=``): ``"dense"`` Cholesky-factors G^T G + w I once per axis (n_r <= 5,000);
+  ``"cg"`` never forms an n x n matrix: conjugate gradients on the FFT Toeplitz operator
+  G^T G + w I, preconditioned by the model's exact banded factorisation, warm-started from
+  the previous step (:mod:`primlib.plant._normal`: stopping rule ||r|| <= 1e-10 ||G^T e||
+  and why that is enough), 1-3 CG steps and ~10 ms per axis and trial at n = 20,000.
+  ``"auto"``: dense up to n_r = 1,000, else CG.
 
 Q is the optional zero-phase Butterworth filter (:class:`primlib.ilc._qfilter.QFilter`).
 
@@ -55,6 +60,7 @@ from primlib.ilc._check import (
     check_norm_optimal,
 )
 from primlib.ilc._qfilter import QFilter
+from primlib.plant._normal import NormalSolver
 from primlib.plant._pid import pid_polynomials
 
 __all__ = ["learn", "ILCResult", "design_gains", "check_learning", "LAWS"]
@@ -63,6 +69,8 @@ LAWS = ("p", "pd", "pid", "norm-optimal")
 _GAIN_KEYS = {"p": ("kp",), "pd": ("kp", "kd"), "pid": ("kp", "ki", "kd"), "norm-optimal": ("w",)}
 DEFAULT_BAND = 0.1  # learning band without a Q-filter, as a fraction of the Nyquist frequency
 NORM_OPTIMAL_MAX_N = 5000  # dense Cholesky of an n x n matrix per axis
+AUTO_DENSE_MAX_N = 1000  # solver "auto": dense Cholesky up to here, CG beyond
+SOLVERS = ("auto", "dense", "cg")
 _ALPHAS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125)
 
 
@@ -89,6 +97,11 @@ class ILCResult:
         The gains used, per axis arrays (``kp``, ``kd``, ``ki`` or ``w``).
     rms_contour : array, shape (iterations + 1,) or None
         RMS contour error per trial (``primlib.contour.contour_error``), when computed.
+    solver : str
+        How the norm-optimal step was solved (empty for the Arimoto laws).
+    cg : tuple of tuple of CGInfo
+        Norm-optimal CG path: per learning update, one ``CGInfo`` (iterations, relative
+        residual, converged) per axis; empty otherwise.
     """
 
     u: np.ndarray
@@ -102,11 +115,30 @@ class ILCResult:
     law: str
     gains: dict = field(default_factory=dict)
     rms_contour: np.ndarray | None = None
+    solver: str = ""
+    cg: tuple = ()
 
     @property
     def iterations(self) -> int:
         """Number of learning updates run (trials - 1)."""
         return len(self.inputs) - 1
+
+    def plot(self, ax=None):
+        """RMS tracking error per trial and axis (log scale), and the contour error when
+        recorded; see :func:`primlib.plot._ilc.plot_ilc_result`.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            Drawn into; None: a new figure.
+
+        Returns
+        -------
+        matplotlib Axes
+        """
+        from primlib.plot._ilc import plot_ilc_result
+
+        return plot_ilc_result(self, ax=ax)
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -266,12 +298,32 @@ class _Axis:
     n_r: int
     c: np.ndarray | None = None  # Arimoto filter L = c / den
     den: np.ndarray | None = None
-    G: np.ndarray | None = None  # norm-optimal
+    G: np.ndarray | None = None  # norm-optimal, dense
     w: float = 0.0
     cho: Any = None
+    normal: Any = None  # norm-optimal, CG (NormalSolver)
+    polys: Any = None  # (num, den) of q^r G, when the model has them
+    prev: np.ndarray | None = None  # last CG step (warm start)
 
 
-def _prepare(model, n: int, law: str, gains, q: QFilter | None):
+def _shifted_polys(model, i: int, r: int):
+    """(num, den) in q^-1 of q^r G for axis i, or None when the model has none."""
+    loops = model.closed_loop() if hasattr(model, "closed_loop") else None
+    if loops is None:
+        return None
+    num, _, den = (np.asarray(p, dtype=float) for p in loops[i])
+    if num.size <= r or np.any(num[:r] != 0.0) or num[r] == 0.0:
+        return None
+    return num[r:], den
+
+
+def _check_solver(solver: Any) -> str:
+    if solver not in SOLVERS:
+        raise InputError(f"solver: expected one of {', '.join(SOLVERS)}, got {solver!r}")
+    return solver
+
+
+def _prepare(model, n: int, law: str, gains, q: QFilter | None, solver: str = "auto"):
     h = model.impulse_response(n)
     d = h.shape[1]
     rel = _relative_degrees(model, h)
@@ -292,18 +344,24 @@ def _prepare(model, n: int, law: str, gains, q: QFilter | None):
         ax = _Axis(r=r, n_r=n_r)
         g = h[r:, i]
         if law == "norm-optimal":
-            if n_r > NORM_OPTIMAL_MAX_N:
+            dense = solver == "dense" or (solver == "auto" and n_r <= AUTO_DENSE_MAX_N)
+            if dense and n_r > NORM_OPTIMAL_MAX_N:
                 raise InputError(
-                    f"reference: law 'norm-optimal' factors an n x n matrix per axis, expected "
-                    f"n <= {NORM_OPTIMAL_MAX_N}, got {n}; use law 'pd' with a q_cutoff"
+                    f"reference: solver 'dense' factors an n x n matrix per axis, expected "
+                    f"n <= {NORM_OPTIMAL_MAX_N}, got {n}; use solver 'cg' or 'auto'"
                 )
             if g[0] == 0.0:
                 raise InputError(f"model: axis {i} has no response inside the trial")
-            ax.G = linalg.toeplitz(g, np.r_[g[0], np.zeros(n_r - 1)])
             ax.w = float(gains["w"][i])
-            H = ax.G.T @ ax.G
-            H[np.diag_indices(n_r)] += ax.w
-            ax.cho = linalg.cho_factor(H, lower=True)
+            ax.polys = _shifted_polys(model, i, r)
+            if dense:
+                ax.G = linalg.toeplitz(g, np.r_[g[0], np.zeros(n_r - 1)])
+                H = ax.G.T @ ax.G
+                H[np.diag_indices(n_r)] += ax.w
+                ax.cho = linalg.cho_factor(H, lower=True)
+            else:
+                num, den = ax.polys if ax.polys is not None else (None, None)
+                ax.normal = NormalSolver(g.copy(), ax.w, num, den)
         else:
             ax.c, ax.den = pid_polynomials(
                 gains["kp"][i],
@@ -320,7 +378,9 @@ def _run_check(axes, law, q, n, dense_limit, h) -> LearningCheck:
     rhos, sigmas, methods = [], [], []
     for i, ax in enumerate(axes):
         if law == "norm-optimal":
-            rho, sigma, how = check_norm_optimal(ax.G, ax.w, ax.cho, q, dense_limit)
+            rho, sigma, how = check_norm_optimal(
+                h[ax.r : ax.r + ax.n_r, i], ax.w, ax.cho, q, dense_limit, ax.polys
+            )
         else:
             col = arimoto_column(h[ax.r :, i], ax.c, ax.den)
             rho, sigma, how = check_arimoto(col, q, dense_limit)
@@ -349,6 +409,7 @@ def check_learning(
     *,
     q_order: int = 2,
     dense_limit: int = 400,
+    solver: str = "auto",
 ) -> LearningCheck:
     """Check a learning law on the lifted model before running it (see ``_check``).
 
@@ -360,17 +421,20 @@ def check_learning(
     law, gains, q_cutoff, q_order
         As for :func:`learn` (gains None: the model-derived defaults).
     dense_limit : int
-        Largest n - r handled with dense matrices; beyond, FFT operators and ARPACK.
+        Largest n - r handled with dense matrices; beyond, FFT operators and Lanczos.
+    solver : {"auto", "dense", "cg"}
+        Norm-optimal solver (see :func:`learn`); "dense" allows n - r <= 5,000.
 
     Returns
     -------
     LearningCheck
     """
     law = _check_law(law)
+    solver = _check_solver(solver)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
         raise InputError(f"n: expected a number of samples >= 2, got {n!r}")
     q = QFilter(q_cutoff, model.dt, q_order) if q_cutoff is not None else None
-    axes, _, h = _prepare(model, int(n), law, gains, q)
+    axes, _, h = _prepare(model, int(n), law, gains, q, solver)
     return _run_check(axes, law, q, int(n), dense_limit, h)
 
 
@@ -389,6 +453,7 @@ def learn(
     dense_limit: int = 400,
     contour: bool | None = None,
     callback=None,
+    solver: str = "auto",
 ) -> ILCResult:
     """Iterative learning control of a reference on a machine, all axes in parallel.
 
@@ -424,6 +489,10 @@ def learn(
     callback : callable, optional
         Called after every trial as ``callback(trial, rms)`` with the trial number (0 for
         ``u0``) and the per-axis RMS error, shape (d,) (e.g. to print progress).
+    solver : {"auto", "dense", "cg"}
+        Norm-optimal step: "dense" Cholesky (n - r <= 5,000), "cg" conjugate gradients on
+        FFT operators (any length; see the module docstring), "auto" dense up to
+        n - r = 1,000. Both give the same inputs to the CG tolerance.
 
     Returns
     -------
@@ -447,6 +516,7 @@ def learn(
     >>> res.rms_total            # one entry per trial
     """
     law = _check_law(law)
+    solver = _check_solver(solver)
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)):
         raise InputError(f"iterations: expected an integer >= 0, got {iterations!r}")
     if iterations < 0:
@@ -471,7 +541,7 @@ def learn(
             raise InputError(f"u0: expected the reference's shape {ref.shape}, got {u.shape}")
         u = u.copy()
     q = QFilter(q_cutoff, plant.dt, q_order) if q_cutoff is not None else None
-    axes, used_gains, h = _prepare(model, n, law, gains, q)
+    axes, used_gains, h = _prepare(model, n, law, gains, q, solver)
     check = _run_check(axes, law, q, n, dense_limit, h)
     if not check.monotonic:
         warnings.warn(
@@ -501,7 +571,7 @@ def learn(
         y_out = plant.simulate(u_in, reference=ref) if uses_reference else plant.simulate(u_in)
         return y_out, ref - y_out
 
-    inputs, outputs, errors, rms, contours = [], [], [], [], []
+    inputs, outputs, errors, rms, contours, cg_log = [], [], [], [], [], []
 
     def record(u_in, y_out, e_out):
         inputs.append(u_in)
@@ -522,7 +592,7 @@ def learn(
         if tol is not None and total[-1] <= tol:
             stopped = "tol"
             break
-        u = _update(u, e, axes, law, q)
+        u = _update(u, e, axes, law, q, cg_log)
         y, e = trial(u)
         record(u, y, e)
         total.append(float(np.sqrt(np.sum(rms[-1] ** 2))))
@@ -544,14 +614,28 @@ def learn(
         law=law,
         gains={k: v.copy() for k, v in used_gains.items()},
         rms_contour=np.array(contours) if contour_fn is not None else None,
+        solver=_solver_name(axes, law),
+        cg=tuple(cg_log),
     )
 
 
-def _update(u: np.ndarray, e: np.ndarray, axes, law: str, q: QFilter | None) -> np.ndarray:
+def _solver_name(axes, law: str) -> str:
+    if law != "norm-optimal":
+        return ""
+    names = [ax.normal.method if ax.normal is not None else "dense Cholesky" for ax in axes]
+    return "; ".join(dict.fromkeys(names))
+
+
+def _update(u: np.ndarray, e: np.ndarray, axes, law: str, q: QFilter | None, log) -> np.ndarray:
     new = np.empty_like(u)
+    infos = []
     for i, ax in enumerate(axes):
         e_s = e[ax.r : ax.r + ax.n_r, i]  # eq. shift by the relative degree
-        if law == "norm-optimal":
+        if law == "norm-optimal" and ax.normal is not None:
+            step, info = ax.normal.solve(ax.normal.rhs(e_s), ax.prev)
+            ax.prev = step
+            infos.append(info)
+        elif law == "norm-optimal":
             step = linalg.cho_solve(ax.cho, ax.G.T @ e_s)
         else:
             step = signal.lfilter(ax.c, ax.den, e_s)
@@ -560,4 +644,6 @@ def _update(u: np.ndarray, e: np.ndarray, axes, law: str, q: QFilter | None) -> 
             v = q(v)
         new[: ax.n_r, i] = v
         new[ax.n_r :, i] = v[-1]
+    if infos:
+        log.append(tuple(infos))
     return new
