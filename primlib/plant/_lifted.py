@@ -84,12 +84,15 @@ class SingularValueEstimate:
     value : float
         sigma_max, or its best estimate.
     error_bound : float
-        Absolute bound on ``|value - sigma_max|`` (0 for a dense SVD); see ``converged``.
+        Bound on ``sigma_max - value`` (the Krylov values are lower bounds). Converged: the
+        Ritz residual bound (ARPACK's criterion). Not converged: the gap-free bound of
+        Kuczynski & Wozniakowski that holds with probability >= 1 - 1e-6 over the random
+        start (``inf`` when too few steps were taken for it, or for power iteration).
     converged : bool
-        ``error_bound <= tol * value``: the requested accuracy was reached.
+        The Ritz residual reached ``tol * value``.
     method : str
-        How it was computed, e.g. ``"Lanczos, 120 steps, converged"`` or
-        ``"Lanczos, 300 steps: estimate, error <= 3.1e-06"``.
+        How it was computed, e.g. ``"Lanczos, 120 steps: converged"`` or
+        ``"Lanczos, 300 steps: estimate, error <= 3.1e-06 (p >= 1 - 1e-6)"``.
     steps : int
         Operator applications of ``op.T @ op`` (0 for dense).
     """
@@ -120,21 +123,24 @@ def max_singular_value(
         ``"lanczos"`` when ARPACK does not converge in 50 restarts (a cluster of nearly
         equal largest singular values); never raises ``ArpackNoConvergence``.
         ``"lanczos"``: Lanczos on ``op.T @ op`` with full reorthogonalisation from a seeded
-        start, at most ``lanczos_steps`` steps. It stops when the residual of the top Ritz
-        pair, ``beta_j |s_j|`` (``s`` the Ritz vector in the Krylov basis), proves the
-        value to ``tol`` relative: the Ritz value theta lies below lambda_max (interlacing)
-        and within that residual of an eigenvalue of ``op.T @ op``, so
-        ``|sqrt(theta) - sigma| <= beta_j |s_j| / (2 sqrt(theta))`` -- for the top singular
-        value unless the random start is orthogonal to its vector (probability 0). When the
-        steps run out first (a tight cluster of top singular values: the value settles long
-        before the vector), the value is returned as an *estimate* with that bound
-        (``full_output``).
+        start, at most ``lanczos_steps`` steps. The top Ritz value theta lies below
+        lambda_max (interlacing) and within the residual ``beta_j |s_j|`` (``s`` the Ritz
+        vector in the Krylov basis) of *some* eigenvalue of ``op.T @ op``; Lanczos stops
+        when that residual, in sigma ``beta_j |s_j| / (2 sqrt(theta))``, is below ``tol``
+        relative (ARPACK's criterion; it is the error to sigma_max once the top Ritz pair
+        is isolated). When the steps run out first (a tight cluster of top singular values,
+        where the residual only measures the distance to a cluster member), the value is
+        returned as an *estimate* with the gap-free probabilistic bound of Kuczynski &
+        Wozniakowski (SIAM J. Matrix Anal. Appl. 13(4), 1992: after k products from a
+        uniformly random start, P[lambda_max (1 - eps) > theta] <= 1.648 sqrt(n)
+        exp(-sqrt(eps) (2k - 1))), at failure probability 1e-6, in the method string and
+        ``full_output``.
         ``"power"``: power iteration on ``op.T @ op`` from a seeded random start, until the
         estimate changes by less than ``tol`` relative (at most 3000 steps). It converges
         from below and its stopping rule is no error bound: on clustered spectra it stops
         early (relative error ~1e-5 seen where the change per step was 1e-10), so the
-        result is flagged as an estimate with the bound of the Ritz residual of its last
-        vector.
+        result is flagged as an estimate (a lower bound) with no error bound (``inf``)
+        unless its Rayleigh residual is below ``tol`` as for Lanczos.
     tol : float
         Relative tolerance.
     seed : int
@@ -179,7 +185,11 @@ def _max_singular_value(op, method, tol, seed, lanczos_steps) -> SingularValueEs
     if method == "lanczos":
         value, bound, steps = _lanczos_max(op, n, rng, steps=lanczos_steps, tol=tol)
         converged = bool(bound <= tol * value)
-        state = "converged" if converged else f"estimate, error <= {bound:.2g}"
+        if converged:
+            state = "converged"
+        else:
+            bound = _gap_free_bound(value, n, steps)
+            state = f"estimate, error <= {bound:.2g} (p >= 1 - {_FAIL:g})"
         return SingularValueEstimate(
             value, bound, converged, f"{note}Lanczos, {steps} steps: {state}", steps
         )
@@ -205,13 +215,34 @@ def _max_singular_value(op, method, tol, seed, lanczos_steps) -> SingularValueEs
     resid = float(np.linalg.norm(y - theta * x))
     value = float(np.sqrt(max(theta, 0.0)))
     bound = resid / (2 * value) if value > 0 else 0.0
+    if bound <= tol * value:
+        return SingularValueEstimate(
+            value, bound, True, f"power iteration, {steps} steps: converged", steps
+        )
     return SingularValueEstimate(
         value,
-        bound,
-        bool(bound <= tol * value),
-        f"power iteration, {steps} steps: estimate, error <= {bound:.2g}",
+        float("inf"),
+        False,
+        f"power iteration, {steps} steps: estimate (a lower bound), Rayleigh residual "
+        f"{bound:.2g} (to the nearest singular value, not necessarily the largest)",
         steps,
     )
+
+
+_FAIL = 1e-6  # failure probability of the gap-free bound
+
+
+def _gap_free_bound(value: float, n: int, steps: int) -> float:
+    """sigma_max - value bound holding with probability >= 1 - _FAIL (Kuczynski &
+    Wozniakowski 1992, Lanczos from a uniformly random start: k = steps - 1 products beyond
+    the start, counted conservatively)."""
+    k = steps - 1
+    if k < 1:
+        return float("inf")
+    eps = (np.log(1.648 * np.sqrt(n) / _FAIL) / (2 * k - 1)) ** 2
+    if eps >= 1.0:
+        return float("inf")
+    return float(value * (1.0 / np.sqrt(1.0 - eps) - 1.0))
 
 
 def _lanczos_max(op, n: int, rng, steps: int, tol: float) -> tuple[float, float, int]:
