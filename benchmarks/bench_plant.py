@@ -1,12 +1,19 @@
 """Benchmark: Machine.simulate, 3 axes x 20,000 samples, against scipy.signal.dlsim.
 
-Run:  OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_plant.py
+Run:  OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_plant.py [--long-only]
 
 Prints the median time of ``Machine.simulate`` on the XYZ machine of the primitive-matching
 paper (eq. 24, open loop) and on the same machine inside a PID loop, beside the median of
 ``scipy.signal.dlsim`` on each axis's state-space realisation (the slow path) and of a plain
 ``lfilter`` on the expanded transfer function, measured in the same run, and asserts that the
 outputs agree. Goal: simulate <= 1 ms.
+
+Long trials (``--long-only`` runs just this): norm-optimal ILC, 3 axes x 20,000 samples
+(100 s at 5 ms), 5 iterations, by the CG path (FFT operators, banded preconditioner); the
+baseline is the dense Cholesky path at the largest n it allows (5,000), measured in the same
+run and scaled by (20,000 / 5,000)^3 = 64 (its Cholesky and G^T G products are O(n^3); the
+measured exponent between n = 2,500 and 5,000 is printed beside it). The two paths' results
+at n = 5,000 are asserted equal.
 """
 
 from __future__ import annotations
@@ -21,7 +28,8 @@ from scipy import linalg, signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from primlib.ilc import learn  # noqa: E402
+from primlib.ilc import check_learning, learn  # noqa: E402
+from primlib.ilc._learn import NORM_OPTIMAL_MAX_N  # noqa: E402
 from primlib.plant import Machine, max_singular_value, toeplitz_operator  # noqa: E402
 from primlib.plant._pid import pid_polynomials  # noqa: E402
 
@@ -60,6 +68,9 @@ def _lfilter_all(machine, u):
 def main() -> int:
     root = Path(__file__).resolve().parents[1]
     xyz = Machine.from_json(root / "data" / "machines" / "xyz.json")
+    if "--long-only" in sys.argv[1:]:
+        _bench_long(xyz)
+        return 0
     pid = {a: {"kp": 20.0, "ki": 5.0, "kd": 0.2, "tf": 0.01} for a in xyz.axes}
     xyz_pid = Machine("xyz-pid", xyz.dt, xyz.axes, xyz.plants, pid)
     rng = np.random.default_rng(0)
@@ -101,6 +112,7 @@ def main() -> int:
     t_big, s_big = _median(lambda: max_singular_value(op_big, method="lanczos"), 3)
     print(f"sigma_max at n = {n_big} (no dense baseline, 3.2 GB): {t_big * 1e3:.0f} ms")
     _bench_learn(xyz)
+    _bench_long(xyz)
     return 0
 
 
@@ -151,6 +163,58 @@ def _bench_learn(xyz):
             f"dense {t_slow * 1e3:7.0f} ms "
             f"({t_slow / t_fast:.1f}x)  rms {res.rms_total[0]:.3g} -> {res.rms_total[-1]:.3g}"
         )
+
+
+def _long_reference(n):
+    s = np.linspace(0, 1, n)
+    bump = 10 * s**3 - 15 * s**4 + 6 * s**5
+    ref = np.column_stack(
+        [
+            10 * np.sin(np.pi * s) ** 2 * np.cos(2 * np.pi * s),
+            10 * bump,
+            5 * np.sin(2 * np.pi * s) ** 3 * bump,
+        ]
+    )
+    return ref - ref[0]
+
+
+def _bench_long(xyz):
+    n_long, n_dense, iters = 20_000, NORM_OPTIMAL_MAX_N, 5
+    kw = dict(law="norm-optimal", iterations=iters, contour=False)
+    ref = _long_reference(n_long)
+    t_chk, chk = _median(lambda: check_learning(xyz, n_long, "norm-optimal"), 3)
+    t_cg, res = _median(lambda: learn(xyz, ref, **kw), 3)
+    cg_steps = [max(i.iterations for i in upd) for upd in res.cg]
+    print(
+        f"norm-optimal ILC, 3 axes x {n_long} samples, {iters} iterations, CG path "
+        f"(median of 3): {t_cg:.2f} s, of which the check {t_chk:.2f} s "
+        f"(sigma_max {chk.max_singular_value:.10f}, monotonic {chk.monotonic})"
+    )
+    print(f"  CG steps per solve (largest over axes, per update): {cg_steps}")
+    print("  RMS per trial (x, y, z | total):")
+    for j, (row, tot) in enumerate(zip(res.rms, res.rms_total, strict=True)):
+        print(f"    trial {j}: " + " ".join(f"{v:.3e}" for v in row) + f" | {tot:.3e}")
+    # baseline: the dense Cholesky path at the largest n it allows, scaled by n^3
+    ref_d = _long_reference(n_dense)
+    t_half, _ = _median(lambda: learn(xyz, _long_reference(n_dense // 2), solver="dense", **kw), 1)
+    t_dense, dense = _median(lambda: learn(xyz, ref_d, solver="dense", **kw), 1)
+    t_cg_d, cg_d = _median(lambda: learn(xyz, ref_d, solver="cg", **kw), 3)
+    scale = np.max(np.abs(dense.u))
+    np.testing.assert_allclose(cg_d.u, dense.u, rtol=0, atol=1e-6 * scale)
+    np.testing.assert_allclose(cg_d.rms_total, dense.rms_total, rtol=1e-6)
+    factor = (n_long / n_dense) ** 3
+    exponent = np.log(t_dense / t_half) / np.log(2)
+    print(
+        f"  dense path at n = {n_dense}: {t_dense:.1f} s (n = {n_dense // 2}: {t_half:.2f} s, "
+        f"measured exponent {exponent:.2f}); CG at n = {n_dense}: {t_cg_d * 1e3:.0f} ms "
+        f"({t_dense / t_cg_d:.0f}x), same inputs"
+    )
+    print(
+        f"  dense scaled to n = {n_long} (x {factor:.0f}, n^3): {t_dense * factor:.0f} s "
+        f"(and 3 x {8 * n_long**2 / 1e9:.1f} GB) vs CG {t_cg:.2f} s: "
+        f"ratio {t_dense * factor / t_cg:.0f}x; at the measured exponent "
+        f"{t_dense * 4**exponent:.0f} s, ratio {t_dense * 4**exponent / t_cg:.0f}x"
+    )
 
 
 if __name__ == "__main__":
