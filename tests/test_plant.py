@@ -188,6 +188,20 @@ def test_bundled_machines_round_trip(name, tmp_path):
     assert Machine.from_dict(json.loads(out.read_text())) == m
 
 
+def test_io_exports_read_and_write_machine(tmp_path):
+    from primlib.io import read_machine, write_machine
+
+    m = Machine.from_json(DATA / "xy-pdccilc.json")
+    out = tmp_path / "m.json"
+    write_machine(out, m)
+    assert read_machine(out) == m
+    with pytest.raises(InputError, match=r"missing\.json: expected a machine JSON file, got no"):
+        read_machine(tmp_path / "missing.json")
+    (tmp_path / "bad.json").write_text("{", encoding="utf-8")
+    with pytest.raises(InputError, match=r"bad\.json: expected valid JSON, got .* at line 1"):
+        read_machine(tmp_path / "bad.json")
+
+
 def test_bundled_xyz_is_eq24():
     m = Machine.from_json(DATA / "xyz.json")
     assert m.axes == ("x", "y", "z") and m.dt == 0.005 and m.feedback is None
