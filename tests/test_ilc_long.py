@@ -134,14 +134,18 @@ def test_normal_solver_against_dense(with_polys):
     A = G.T @ G + w * np.eye(n)
     b = s.rhs(e)
     np.testing.assert_allclose(b, G.T @ e, atol=1e-12 * np.linalg.norm(b))
+    # rtol: the step's effect on the next error <= 1e-6 of it (primlib.plant._normal)
+    assert s.rtol == pytest.approx(min(CG_RTOL, 2e-6 * np.sqrt(w) / np.sum(np.abs(g))))
     x, info = s.solve(b)
-    assert info.converged and info.residual <= CG_RTOL
+    assert info.converged and info.residual <= s.rtol
+    # ... which that effect obeys: ||G (x - x*)|| <= 1e-6 ||e||
+    assert np.linalg.norm(G @ (x - linalg.solve(A, b, assume_a="pos"))) <= 1e-6 * np.linalg.norm(e)
     if with_polys:
         assert info.iterations <= 3
     exact = linalg.solve(A, b, assume_a="pos")
     # ||x - x*|| <= ||r|| / w, plus the dense solve's own eps * cond rounding
     cond = np.linalg.cond(A)
-    tol = CG_RTOL * np.linalg.norm(b) / w + 10 * np.finfo(float).eps * cond * np.linalg.norm(exact)
+    tol = s.rtol * np.linalg.norm(b) / w + 10 * np.finfo(float).eps * cond * np.linalg.norm(exact)
     assert np.linalg.norm(x - exact) <= tol
     # warm start from the answer: done at once; from a stale, scaled-up step: never worse
     # than a cold start in iterations

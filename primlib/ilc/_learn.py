@@ -15,8 +15,9 @@ act inside the trial and hold the last learned value.
   (``solver=``): ``"dense"`` Cholesky-factors G^T G + w I once per axis (n_r <= 5,000);
   ``"cg"`` never forms an n x n matrix: conjugate gradients on the FFT Toeplitz operator
   G^T G + w I, preconditioned by the model's exact banded factorisation, warm-started from
-  the previous step (:mod:`primlib.plant._normal`: stopping rule ||r|| <= 1e-10 ||G^T e||
-  and why that is enough), 1-3 CG steps and ~10 ms per axis and trial at n = 20,000.
+  the previous step (:mod:`primlib.plant._normal`: the stopping rule bounds each solve's
+  effect on the next error by 1e-6 of the current one), 1-3 CG steps and ~10 ms per axis
+  and trial at n = 20,000.
   ``"auto"``: dense up to n_r = 1,000, else CG.
 
 Q is the optional zero-phase Butterworth filter (:class:`primlib.ilc._qfilter.QFilter`).
