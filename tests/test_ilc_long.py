@@ -190,3 +190,43 @@ def test_result_plot_delegates():
     fig, own = plt.subplots()
     assert res.plot(ax=own) is own
     plt.close("all")
+
+
+def test_near_cancelling_zero_and_pole_still_precondition():
+    # a PID loop's zero at z = 1 beside a slow pole just inside it: N^T N + w D^T D is
+    # numerically singular unless the pair is dropped from the preconditioner
+    from scipy import signal
+
+    from primlib.plant._normal import _cancel_common_roots
+
+    num = 1e-3 * np.convolve([1.0, -1.0], [1.0, 0.5])
+    den = np.convolve([1.0, -0.9999997], [1.0, -0.9])
+    kept_num, kept_den = _cancel_common_roots(num, den)
+    np.testing.assert_allclose(kept_num, [1e-3, 0.5e-3], rtol=1e-9)
+    np.testing.assert_allclose(kept_den, [1.0, -0.9], rtol=1e-9)
+    n = 4000
+    imp = np.zeros(n)
+    imp[0] = 1.0
+    g = signal.lfilter(num, den, imp)
+    s = NormalSolver(g, 1e-8, num, den)
+    assert s.preconditioned
+    b = s.rhs(np.cumsum(np.random.default_rng(2).standard_normal(n)))
+    x, info = s.solve(b)
+    assert info.converged and info.iterations <= 20
+    assert np.linalg.norm(b - s.matvec(x)) <= s.rtol * np.linalg.norm(b)
+
+
+def test_cg_stopping_short_warns(monkeypatch):
+    import primlib.ilc._learn as learn_module
+    from primlib.ilc import ConvergenceWarning
+
+    class Starved(NormalSolver):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.maxiter = self.fallback_maxiter = 0
+
+    monkeypatch.setattr(learn_module, "NormalSolver", Starved)
+    ref = _path(XYZ, 300)
+    with pytest.warns(ConvergenceWarning, match=r"3 CG solve\(s\) stopped short of the tol"):
+        res = learn(XYZ, ref - ref[0], law="norm-optimal", solver="cg", iterations=1)
+    assert not any(info.converged for info in res.cg[0])

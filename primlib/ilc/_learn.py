@@ -502,7 +502,8 @@ def learn(
     Warns
     -----
     ConvergenceWarning
-        When the check finds sigma_max >= 1 (monotonic convergence not assured).
+        When the check finds sigma_max >= 1 (monotonic convergence not assured), or when
+        a norm-optimal CG solve stopped short of its tolerance (``result.cg`` says which).
 
     Raises
     ------
@@ -603,6 +604,21 @@ def learn(
     else:
         if tol is not None and total[-1] <= tol:
             stopped = "tol"
+    short = [
+        (j + 1, i, info.residual)
+        for j, upd in enumerate(cg_log)
+        for i, info in enumerate(upd)
+        if not info.converged
+    ]
+    if short:
+        j, i, res_ = max(short, key=lambda item: item[2])
+        warnings.warn(
+            f"ILC law 'norm-optimal': {len(short)} CG solve(s) stopped short of the "
+            f"tolerance, worst relative residual {res_:.2g} (update {j}, axis {i}); the "
+            "steps are inexact (see result.cg)",
+            ConvergenceWarning,
+            stacklevel=2,
+        )
     return ILCResult(
         u=inputs[-1],
         inputs=inputs,
