@@ -5,14 +5,16 @@ Reports, each beside its baseline measured in the same run:
 
 * the whole ``Library.match`` (bank from DuckDB, arc-length index, binary-search
   segmentation), cold (first call builds the index) and warm (median of 3);
-* the same segmentation from the exhaustive grid search (``search="grid"``: every
-  primitive × start × time scale, vectorised) — asserted equal — and its time;
-* the plain per-candidate Kabsch loop over the grid's candidates: timed on a subset of one
-  probe's candidates, scaled by the number of candidates the exhaustive search scores;
+* the same segmentation from the exhaustive scan of the same candidate windows with no
+  bounds (``search="scan"``) on 1,000 primitives, and from the exhaustive time-uniform
+  grid (``search="grid"``: every primitive × start × time scale, vectorised) on 100 —
+  both asserted equal;
+* the plain per-candidate Kabsch loop: timed on 3,000 windows, scaled by the number of
+  windows the exhaustive scan scores;
 * match time against library size 10 / 100 / 1,000.
 
-Run: ``OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_match.py``
-(``--quick``: 100 primitives for the exhaustive comparison, a few minutes less).
+Run: ``python benchmarks/bench_match.py`` (single-threaded BLAS; ``--full-grid`` also runs
+the time grid on 1,000 primitives, about ten minutes).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from scipy.spatial.transform import Rotation  # noqa: E402
 from primlib.match import segment_path  # noqa: E402
 from primlib.match._bank import as_bank  # noqa: E402
 from primlib.match._kabsch import kabsch  # noqa: E402
-from primlib.match._search import GridSearch, PathPiece, SearchOptions  # noqa: E402
+from primlib.match._search import PathPiece  # noqa: E402
 from primlib.nurbs import Trajectory  # noqa: E402
 from primlib.plant import Machine  # noqa: E402
 from primlib.store import Library  # noqa: E402
@@ -99,7 +101,11 @@ def timed(fn, repeat: int = 3) -> tuple[float, object]:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="exhaustive comparison on 100 prims")
+    ap.add_argument(
+        "--full-grid",
+        action="store_true",
+        help="also run the time-uniform grid on 1,000 primitives (about 10 minutes)",
+    )
     args = ap.parse_args()
     machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
     print(f"machine {machine.name}: dt {machine.dt} s; eps {EPS}; pieces {len(PIECES)}")
@@ -135,40 +141,54 @@ def main() -> None:
         f"{info['probes']} probes, {info['windows']:,} windows, {info['scored']:,} scored"
     )
 
-    # -- exhaustive grid search on the same samples
-    k_ex = 100 if args.quick else 1000
-    bank = as_bank(libs[k_ex].bank(machine.name))
+    # -- the exhaustive searches on the same samples
+    bank = as_bank(lib.bank(machine.name))
     pts = path.at(np.linspace(0.0, 1.0, n))
     dt = path.duration / (n - 1)
-    fast_t, (fast_segs, fast_info) = timed(lambda: segment_path(bank, pts, dt, EPS), 1)
-    if k_ex != 1000:
-        fast_t, (fast_segs, fast_info) = timed(lambda: segment_path(bank, pts, dt, EPS), 3)
+    fast_segs, _ = segment_path(bank, pts, dt, EPS)
     t0 = time.perf_counter()
-    grid_segs, grid_info = segment_path(bank, pts, dt, EPS, search="grid")
-    grid_t = time.perf_counter() - t0
-    same = key(grid_segs) == key(fast_segs)
+    scan_segs, scan_info = segment_path(bank, pts, dt, EPS, search="scan")
+    scan_t = time.perf_counter() - t0
+    same_scan = key(scan_segs) == key(fast_segs)
     print(
-        f"\nexhaustive grid search, {k_ex} primitives: {grid_t:.1f} s, "
+        f"\nexhaustive scan of every arc window (no bounds), 1,000 primitives: {scan_t:.1f} s, "
+        f"{scan_info['scored']:,} windows scored over {scan_info['probes']} probes"
+    )
+    print(f"  same segmentation as the pruned index search: {same_scan}")
+    assert same_scan, f"scan {key(scan_segs)} != index {key(fast_segs)}"
+
+    k_ex = 1000 if args.full_grid else 100
+    bank_g = as_bank(libs[k_ex].bank(machine.name))
+    fast_g_t, (fast_g, _) = timed(lambda: segment_path(bank_g, pts, dt, EPS), 1)
+    t0 = time.perf_counter()
+    grid_segs, grid_info = segment_path(bank_g, pts, dt, EPS, search="grid")
+    grid_t = time.perf_counter() - t0
+    same_grid = key(grid_segs) == key(fast_g)
+    print(
+        f"\nexhaustive time-uniform grid search, {k_ex} primitives: {grid_t:.1f} s, "
         f"{grid_info['windows']:,} candidates over {grid_info['probes']} probes"
     )
-    print(f"  same segmentation as the index search: {same}")
-    assert same, f"grid {key(grid_segs)} != index {key(fast_segs)}"
+    print(f"  same segmentation as the index search: {same_grid}")
+    if k_ex == 100:
+        assert same_grid, f"grid {key(grid_segs)} != index {key(fast_g)}"
+    elif not same_grid:
+        print(f"  grid {key(grid_segs)}\n  index {key(fast_g)}")
 
-    # -- per-candidate Kabsch loop: rate on one probe's candidates, scaled to all of them
-    opts = SearchOptions()
-    grid = GridSearch(bank, opts)
-    piece = PathPiece(pts, path.duration)
-    q = piece.at(np.linspace(0.0, segs[0].end, opts.grid_points))
-    res, starts, *_ = next(iter(grid._windows(piece, 0.0, segs[0].end)))
-    sub = starts[:3000]
+    # -- per-candidate Kabsch loop: rate on one probe's windows, scaled to the scan's
+    k_q = 16
+    q = PathPiece(pts, path.duration).at(np.linspace(0.0, segs[0].end, k_q))
+    win = np.lib.stride_tricks.sliding_window_view(bank.points, k_q, axis=0)
+    sub = np.arange(0, 3000 * 37, 37)
     t0 = time.perf_counter()
     for m in sub:
-        kabsch(res[m : m + opts.grid_points], q)
+        kabsch(win[m].T, q)
     rate = sub.size / (time.perf_counter() - t0)
-    loop_t = grid_info["windows"] / rate
-    print(f"\nper-candidate Kabsch loop: {rate:,.0f} pairs/s on {sub.size} candidates")
+    loop_t = scan_info["scored"] / rate
+    print(f"\nper-candidate Kabsch loop: {rate:,.0f} pairs/s ({sub.size} pairs of {k_q} points)")
     print(
-        f"  scaled to the exhaustive search's {grid_info['windows']:,} candidates: {loop_t:,.0f} s"
+        f"  scaled to the scan's {scan_info['scored']:,} windows: {loop_t:,.0f} s; "
+        f"to the time grid's {grid_info['windows']:,} candidates ({k_ex} primitives): "
+        f"{grid_info['windows'] / rate:,.0f} s"
     )
 
     # -- time against library size
@@ -192,12 +212,17 @@ def main() -> None:
     print("|---|---|---|---|---|")
     cmd = "`python benchmarks/bench_match.py`"
     print(
-        f"| match, 1,000 prims x 2,000 samples, 2,400-sample path (warm) | {warm:.2f} s | "
-        f"per-candidate Kabsch loop {loop_t:,.0f} s (scaled) | {loop_t / warm:,.0f}x | {cmd} |"
+        f"| match, 1,000 prims x 2,000 samples, 2,400-sample path, warm | {warm:.2f} s | "
+        f"per-candidate Kabsch loop over the same windows {loop_t:,.0f} s (scaled) | "
+        f"{loop_t / warm:,.0f}x | {cmd} |"
     )
     print(
-        f"| match, same, cold (index build) | {cold:.2f} s | exhaustive grid {k_ex} prims "
-        f"{grid_t:.0f} s | {grid_t / fast_t:,.0f}x vs {fast_t:.2f} s | {cmd} |"
+        f"| same, cold (bank + index build) | {cold:.2f} s | exhaustive scan {scan_t:.1f} s "
+        f"| {scan_t / warm:,.1f}x (vs warm) | {cmd} |"
+    )
+    print(
+        f"| exhaustive time grid, {k_ex} prims | {grid_t:.1f} s | index search {fast_g_t:.2f} s "
+        f"| {grid_t / fast_g_t:,.0f}x | {cmd} |"
     )
     print(
         f"| match time, 10 -> 1,000 prims | x{growth:.1f} | linear x100 | "

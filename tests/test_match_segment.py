@@ -118,10 +118,10 @@ def test_same_segmentation_as_exhaustive_grid_and_per_candidate_loop():
     opts = SearchOptions(seeds=2)
     out = {
         s: segment_path(bank, pts, DT, eps, search=s, options=opts, time_scale=(0.5, 2.0))[0]
-        for s in ("index", "grid", "loop")
+        for s in ("index", "scan", "grid", "loop")
     }
     key = {s: [(g.end, g.primitive) for g in segs] for s, segs in out.items()}
-    assert key["index"] == key["grid"] == key["loop"]
+    assert key["index"] == key["scan"] == key["grid"] == key["loop"]
     for a, b in zip(out["grid"], out["loop"], strict=True):
         assert a.rmsd == pytest.approx(b.rmsd, abs=1e-9)
 
@@ -174,12 +174,12 @@ def test_arc_index_pruning_keeps_the_exact_top_seeds():
     opts = SearchOptions(seeds=3)
     pruned = IndexSearch(bank, opts, index=index)
     seeds = pruned.seeds(path, 0.0, 1.0, eps=0.05)
-    # without pruning: a chunk as large as every window scores them all in one go
-    full = IndexSearch(bank, opts, index=index, chunk=10**9)
-    full_seeds = full.seeds(path, 0.0, 1.0, eps=1e9)  # gate open: every window scored
-    assert pruned.stats.scored < pruned.stats.windows
-    assert seeds[0].prim == 5 == full_seeds[0].prim
-    assert seeds[0] == full_seeds[0]
+    # without the bounds every window is scored: the same seeds
+    full = IndexSearch(bank, opts, index=index, prune=False)
+    full_seeds = full.seeds(path, 0.0, 1.0, eps=0.05)
+    assert pruned.stats.scored < full.stats.scored  # (all but those out of time scale)
+    assert seeds[0].prim == 5
+    assert seeds == full_seeds
 
 
 def test_bad_input():
@@ -193,7 +193,7 @@ def test_bad_input():
         segment_path(bank, pts[:, :2], DT, 0.1)
     with pytest.raises(InputError, match="rotation: expected one of full, z, none"):
         segment_path(bank, pts, DT, 0.1, rotation="xy")
-    with pytest.raises(InputError, match="search: expected one of index, grid, loop"):
+    with pytest.raises(InputError, match="search: expected one of index, scan, grid, loop"):
         segment_path(bank, pts, DT, 0.1, search="magic")
     with pytest.raises(InputError, match="time_scale"):
         segment_path(bank, pts, DT, 0.1, time_scale=(2.0, 1.0))

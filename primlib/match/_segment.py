@@ -50,7 +50,7 @@ from primlib.match._types import Match, Segment
 
 __all__ = ["segment_path", "match_path", "matched_pieces", "SEARCHES"]
 
-SEARCHES = ("index", "grid", "loop")
+SEARCHES = ("index", "scan", "grid", "loop")
 
 # The arc-length index of the last bank searched, keyed by its arrays' identity and shape:
 # the store hands out a fresh Bank per call, so this saves rebuilding only for a caller that
@@ -89,15 +89,15 @@ def _make_searcher(bank: BankArrays, opts: SearchOptions, search: str):
         return GridSearch(bank, opts)
     if search == "loop":
         return LoopSearch(bank, opts)
-    if search != "index":
-        raise InputError(f"search: expected one of index, grid, loop, got {search!r}")
+    if search not in ("index", "scan"):
+        raise InputError(f"search: expected one of index, scan, grid, loop, got {search!r}")
     key = (id(bank.points), bank.points.shape, bank.offsets.tobytes())
     index = _INDEX_CACHE.get(key)
     if index is None:
         index = ArcIndex.build(bank)
         _INDEX_CACHE.clear()
         _INDEX_CACHE[key] = index
-    return IndexSearch(bank, opts, index=index)
+    return IndexSearch(bank, opts, index=index, prune=search == "index")
 
 
 def _try(bank, path, a, b, eps, opts, seed, kc) -> _Found | None:
@@ -195,10 +195,10 @@ def segment_path(
         Minimum search step σ in normalised path time; default one path sample, so cuts
         land on the sample where a piece stops matching. A stretch nothing matches is
         declared unmatched σ at a time, doubling while nothing matches.
-    search : {"index", "grid", "loop"}
-        Seed finder (module notes of ``_search``); all give the same segmentation on the
-        benchmark, "index" fast, "grid" the exhaustive reference, "loop" its per-candidate
-        Kabsch loop.
+    search : {"index", "scan", "grid", "loop"}
+        Seed finder (module notes of ``_search``): "index" the arc-length index with
+        provable pruning (fast), "scan" the same windows all scored, "grid" the exhaustive
+        time-uniform grid, "loop" the grid's per-candidate Kabsch loop.
     options : SearchOptions, optional
         Further knobs; ``rotation`` and ``time_scale`` override its fields.
 
