@@ -248,23 +248,32 @@ def _gap_free_bound(value: float, n: int, steps: int) -> float:
 def _lanczos_max(op, n: int, rng, steps: int, tol: float) -> tuple[float, float, int]:
     """(sqrt of the top Ritz value, its residual bound in sigma, steps taken)."""
     k = min(steps, n)
-    basis = np.zeros((n, k + 1))
+    basis = np.zeros((k + 1, n))  # rows: contiguous blocks for the reorthogonalisation
     alpha = np.zeros(k)
     beta = np.zeros(k)
     q = rng.standard_normal(n)
-    basis[:, 0] = q / np.linalg.norm(q)
+    basis[0] = q / np.linalg.norm(q)
     size = k
     for j in range(k):
-        v = op.T @ (op @ basis[:, j])
-        alpha[j] = basis[:, j] @ v
-        block = basis[:, : j + 1]
-        for _ in range(2):  # full reorthogonalisation, twice is enough
-            v -= block @ (block.T @ v)
+        v = op.T @ (op @ basis[j])
+        alpha[j] = basis[j] @ v
+        # three-term recurrence, then full reorthogonalisation against every row; a second
+        # pass only when the first cancelled much of v (Daniel-Gragg-Kaufman-Stewart:
+        # "twice is enough")
+        v -= alpha[j] * basis[j]
+        if j > 0:
+            v -= beta[j - 1] * basis[j - 1]
+        block = basis[: j + 1]
+        before = np.linalg.norm(v)
+        v -= (block @ v) @ block
         beta[j] = np.linalg.norm(v)
+        if beta[j] < 0.7071 * before:
+            v -= (block @ v) @ block
+            beta[j] = np.linalg.norm(v)
         if beta[j] <= 1e-14 * max(abs(alpha[j]), 1e-300):
             # invariant subspace: the Ritz values are eigenvalues
             return _ritz_top(alpha[: j + 1], beta[:j], 0.0) + (j + 1,)
-        basis[:, j + 1] = v / beta[j]
+        basis[j + 1] = v / beta[j]
         if (j + 1) % 10 == 0 or j + 1 == k:
             value, bound = _ritz_top(alpha[: j + 1], beta[:j], beta[j])
             if bound <= tol * value:
