@@ -37,7 +37,8 @@ differ only in how fast they find the seeds:
     (radii of gyration of both halves and the rigid distance between their centroids, from
     cumulative sums) and the principal-value bound Σ(s_i(P) − s_i(Q))²/K (von Neumann's
     trace inequality) on the survivors — until no unscored window's bound is below the
-    pool's worst score or the gate 3ε + Δ/2: the pool is exactly the best windows of
+    pool's worst score or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer level's
+    step; a stored copy starts within Δ_b/2 of a window): the pool is exactly the best windows of
     scoring them all. The pool is re-scored at sub-step shifts of its windows' starts and
     the best few distinct windows become the seeds. ``prune=False`` (``search="scan"``)
     scores every window instead: the same seeds, which the benchmark checks on 1,000
@@ -147,7 +148,11 @@ def _qp2(h: np.ndarray, g: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarr
     line, or a vertex of two: try them all and keep the best feasible one.
     """
     slack = b - a @ z
-    cands = [np.linalg.solve(h, g)]
+    tol = 1e-9 * (1.0 + np.abs(b))
+    free = np.linalg.solve(h, g)
+    if np.all(a @ free <= slack + tol):
+        return free  # the usual case: no constraint active
+    cands = [free]
     for i in range(len(b)):
         ai = a[i]
         # on the line ai·δ = slack_i: δ = δ_p + t·n, n ⟂ ai
@@ -163,7 +168,7 @@ def _qp2(h: np.ndarray, g: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarr
                 cands.append(np.linalg.solve(m, [slack[i], slack[j]]))
     best, best_f = np.zeros(2), 0.0
     for d in cands:
-        if np.all(a @ d <= slack + 1e-9 * (1.0 + np.abs(b))):
+        if np.all(a @ d <= slack + tol):
             f = 0.5 * d @ h @ d - g @ d
             if f < best_f:
                 best, best_f = d, f
@@ -455,8 +460,6 @@ class _Level:
     x: np.ndarray  # (M,) fractional sample index in the primitive
     garc: np.ndarray  # (M,) global arc coordinate (primitive arcs laid end to end)
     left: np.ndarray  # (M,) arc length from this point to the primitive's end
-    cs: np.ndarray
-    cs2: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -579,10 +582,7 @@ class ArcIndex:
         while True:
             sel = (local % (1 << lv)) == 0 if lv else np.ones(local.size, bool)
             pl = np.ascontiguousarray(p[sel])
-            cs, cs2 = _cumsums(pl)
-            levels.append(
-                _Level(step0 * (1 << lv), pl, prim[sel], x[sel], garc[sel], left[sel], cs, cs2)
-            )
+            levels.append(_Level(step0 * (1 << lv), pl, prim[sel], x[sel], garc[sel], left[sel]))
             if sel.sum() <= 2 * k or (1 << lv) * step0 * 16 > length.max():
                 break
             lv += 1
@@ -670,7 +670,9 @@ class IndexSearch:
         if m_all <= 0:
             return []
         m = self.opts.seeds
-        gate = 3.0 * eps + lv.step
+        # a stored copy starts within half a base step of some window start, which moves
+        # every arc sample by at most that: its window's shape RMSD is below the gate
+        gate = 3.0 * eps + 0.5 * lv.step * (1.0 + 1e-6)
         # bound 1, every window, from cumulative sums: split P and Q into halves (k1, k2
         # points). Under the optimal motion the error energy K·rmsd² splits into each half's
         # centroid error (k_h δ_h²) and its centred part (≥ k_h (g_h(P) − g_h(Q))², the
@@ -753,11 +755,12 @@ class IndexSearch:
             tau_w[still] = tau_q
             return np.hypot(shape, ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1)))
 
-        def score(sel: np.ndarray, sp: np.ndarray) -> np.ndarray:
+        def score(sel: np.ndarray, sp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             win = win_view[w[sel]]  # (m, d, k), a copy: one matrix product for all S
             s_ = (win.reshape(-1, k) @ qc).reshape(sel.size, qc.shape[1], qc.shape[1])
             sq_ = np.broadcast_to(sq, (sel.size, 3)) if per_axis else sq
-            return combine(rmsd_from_moments(s_, sp, sq_, k, mode), x_view[w[sel]])
+            shape = rmsd_from_moments(s_, sp, sq_, k, mode)
+            return combine(shape, x_view[w[sel]]), shape
 
         def score_shifted(start: np.ndarray) -> np.ndarray:
             # windows starting at fractional base-level positions (linear interpolation
@@ -796,17 +799,17 @@ class IndexSearch:
             keep, x_end = in_range(todo)
             sp = sp[np.isin(todo, keep, assume_unique=True)]
             todo = keep
-            r = score(todo, sp)
+            r, shape = score(todo, sp)
             self.stats.scored += todo.size
-            order = np.argsort(r)[:n_pool]
-            order = order[r[order] < gate]
+            ok = np.flatnonzero(shape < gate)
+            order = ok[np.argsort(r[ok])[:n_pool]]
             for t in order:
                 c = Candidate(int(lv.prim[w[todo[t]]]), float(lv.x[w[todo[t]]]), float(x_end[t]),
                               float(r[t]))  # fmt: skip
                 where[(c.prim, c.x0)] = int(w[todo[t]])
                 pool.append(c)
             pool = _suppress(pool, n_pool)
-            tau = pool[-1].score if len(pool) == n_pool else gate
+            tau = min(pool[-1].score, gate) if len(pool) == n_pool else gate
         if not pool:
             return []
         # the window grid puts a stored copy up to half a base step from a window start:
