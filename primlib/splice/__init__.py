@@ -11,7 +11,10 @@ scale k; each primitive's converged input is
    holding input of the translation (:func:`superpose`, :func:`holding_input`);
 3. spliced — windows cut from the whole transformed primitive and joined by linear
    transition bands at the junctions, the paper's three cases overlap / gap / continuous
-   (:func:`splice`); unmatched segments get the nominal-model inverse.
+   (:func:`splice`); unmatched segments get the nominal-model inverse;
+4. corrected — the model inverse of the path minus the model's error that the pieces'
+   stored pairs measured (:func:`piece_error`), so the model's error only multiplies what
+   the library does not already know; see :mod:`primlib.splice._splice`.
 
 :func:`warm_start` does all of it from a library, by default on the machine model refined
 on the matched primitives' own (input, path) pairs (:func:`refine_machine`: the stored
@@ -32,10 +35,13 @@ duration / new duration; signals and outputs are deviations from the path's firs
 
 from primlib.splice._continuous import continuous_output, resample_zoh
 from primlib.splice._refine import RefinedModel, refine_machine
-from primlib.splice._splice import METHODS, Band, SpliceResult, StoredSignal, splice
+from primlib.splice._splice import CORRECTIONS, METHODS, Band, SpliceResult, StoredSignal, splice
 from primlib.splice._transform import (
     derivative_orders,
     holding_input,
+    model_inverse,
+    piece_error,
+    piece_path,
     superpose,
     time_scale,
     time_scale_direct,
@@ -56,12 +62,16 @@ __all__ = [
     "superpose",
     "transform",
     "holding_input",
+    "piece_path",
+    "piece_error",
+    "model_inverse",
     "derivative_orders",
     "splice",
     "Band",
     "SpliceResult",
     "StoredSignal",
     "METHODS",
+    "CORRECTIONS",
     "WarmStart",
     "DEFAULT_EPS",
     "warm_start",

@@ -60,6 +60,8 @@ class WarmStart:
     notes : tuple of str
     model : RefinedModel or None
         The model refined on the matched primitives (None when not refined).
+    spliced : array, shape (n, d) or None
+        The transformed pieces joined over the bands, before the residual correction.
     """
 
     u: np.ndarray
@@ -71,6 +73,7 @@ class WarmStart:
     methods: tuple[str, ...]
     notes: tuple[str, ...] = field(default_factory=tuple)
     model: Any = None
+    spliced: np.ndarray | None = None
 
     @property
     def n_unmatched(self) -> int:
@@ -210,6 +213,7 @@ def warm_start(
     band: float | None = None,
     method: str = "auto",
     refine: bool = True,
+    correction: str = "error",
     match=None,
     **kw,
 ):
@@ -235,6 +239,10 @@ def warm_start(
         learned on the real machine, so they say how it differs from its model; the time
         scale and axis mixing then use the refined model. Unmatched segments still get the
         nominal-model inverse.
+    correction : {"input", "output", "junction", "none"}
+        Residual correction of the spliced input (:func:`primlib.splice.splice`): by
+        default the model inverse of what the pieces miss, so the model's error only
+        multiplies that small residual.
     match : Match, optional
         A match already computed for this path and machine (skips matching).
     **kw
@@ -278,6 +286,7 @@ def warm_start(
         band=band,
         method=method,
         inverse_machine=m,
+        correction=correction,
     )
     notes = res.notes
     if model is not None:
@@ -297,6 +306,7 @@ def warm_start(
         methods=res.methods,
         notes=notes,
         model=model,
+        spliced=res.spliced,
     )
 
 
