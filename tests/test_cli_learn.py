@@ -268,3 +268,56 @@ def test_learn_without_primitives_starts_cold(tmp_path):
     out = json.loads(res.output)
     assert out["start"] == "cold"
     assert any("no warm start" in note for note in out["notes"])
+
+
+XY = ROOT / "data" / "machines" / "xy-pdccilc.json"
+
+
+@pytest.mark.parametrize("law", ["pdccilc", "tdilc"])
+def test_learn_master_slave_law_on_the_two_axis_stage(tmp_path, law):
+    runner = CliRunner()
+    db = tmp_path / "xy.duckdb"
+    assert runner.invoke(main, ["--db", str(db), "machine", "add", str(XY)]).exit_code == 0
+    f = tmp_path / "arc2.csv"
+    pts = _arc(2.0)[:, :2]
+    write_path_csv(f, np.arange(pts.shape[0]) * DT, pts)
+    args = ["--db", str(db), "learn", str(f), "--machine", "xy-pdccilc", "--cold"]
+    res = runner.invoke(main, [*args, "--law", law, "-n", "3", "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    its = out["iterations"]
+    assert len(its) == 4 and out["start"] == "cold"
+    # the master-slave result's own contour measure is reported per trial, and learns
+    contour = [it["contour_rms"] for it in its]
+    assert all(c is not None and np.isfinite(c) for c in contour)
+    assert contour[-1] < contour[0]
+    assert its[-1]["rms"] < its[0]["rms"]
+    assert len(its[0]["rms_axes"]) == 2
+
+
+def test_learn_master_slave_law_on_three_axes_exits_2(setup):
+    runner, db, new = setup
+    res = runner.invoke(
+        main, ["--db", str(db), "learn", str(new), "--machine", "xyz", "--law", "pdccilc"]
+    )
+    assert res.exit_code == 2
+    msg = "--law: expected a two-axis machine for the master-slave law 'pdccilc', got machine"
+    assert msg in res.output
+    assert "3 axes (x,y,z)" in res.output
+
+
+def test_learn_long_path_checks_convergence_without_a_dense_svd(tmp_path):
+    # 25 s at 5 ms: n = 5001; the lifted check is iterative (no 5000 x 5000 SVD, no ARPACK)
+    runner = CliRunner()
+    db = tmp_path / "long.duckdb"
+    assert runner.invoke(main, ["--db", str(db), "machine", "add", str(XYZ)]).exit_code == 0
+    f = tmp_path / "long.csv"
+    pts = _arc(25.0)
+    write_path_csv(f, np.arange(pts.shape[0]) * DT, pts)
+    res = runner.invoke(
+        main, ["--db", str(db), "learn", str(f), "--machine", "xyz", "--cold", "-n", "2", "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert len(out["iterations"]) == 3
+    assert out["iterations"][-1]["rms"] < 1e-2 * out["iterations"][0]["rms"]

@@ -357,16 +357,5 @@ def learn_signal(
             u0 = warm_start(library, traj, machine, e).u
         except NoMatchError:
             u0 = None
-    # dense convergence check (primlib.ilc's iterative one can fail to converge when the
-    # learning matrix's eigenvalues cluster at 1)
-    res = learn(
-        m,
-        ref,
-        u0,
-        law=law,
-        iterations=int(iterations),
-        tol=tol,
-        contour=False,
-        dense_limit=max(400, min(ref.shape[0], 3000)),
-    )
+    res = learn(m, ref, u0, law=law, iterations=int(iterations), tol=tol, contour=False)
     return np.asarray(res.u)
