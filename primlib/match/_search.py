@@ -515,36 +515,6 @@ class ArcIndex:
         e2 = h2[:, d] - k2 * np.einsum("ij,ij->i", c2, c2)
         return c1, c2, e1, e2
 
-    def window_sums(self, jb: int, dil: int, w: np.ndarray, k: int):
-        """First and second moments of the windows {w + i·dil, i < k} of level jb.
-
-        Returns (Σp (m, d), Σ p pᵀ (m, d, d)) from per-residue cumulative sums, built once
-        per (level, dilation) and kept.
-        """
-        key = (jb, dil)
-        lv = self.levels[jb]
-        m, d = lv.pts.shape
-        if key not in self.cache:
-            rows = -(-m // dil)
-            x = np.zeros((rows * dil, d))
-            x[:m] = lv.pts
-            cols = [x] + [x[:, a : a + 1] * x[:, a:] for a in range(d)]
-            y = np.concatenate(cols, axis=1).reshape(rows, dil, -1)
-            c = np.zeros((rows + 1, dil, y.shape[2]))
-            np.cumsum(y, axis=0, out=c[1:])
-            self.cache[key] = c
-        c = self.cache[key]
-        qd, r = np.divmod(w, dil)
-        sums = c[qd + k, r] - c[qd, r]
-        s1 = sums[:, :d]
-        s2 = np.empty((w.size, d, d))
-        col = d
-        for a in range(d):
-            for b in range(a, d):
-                s2[:, a, b] = s2[:, b, a] = sums[:, col]
-                col += 1
-        return s1, s2
-
     @classmethod
     def build(cls, bank: BankArrays, points_per_sample: float = 0.25) -> ArcIndex:
         pts = bank.points
@@ -704,12 +674,15 @@ class IndexSearch:
             return []
         sv_q = np.sqrt(np.maximum(_sym_eigvals((qc.T @ qc)[None]), 0.0))[0]
 
+        win_view = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil]
+
         def bound2(sel: np.ndarray):
             # the principal values of the windows' scatter matrices. von Neumann:
             # tr(R P̃ᵀQ̃) ≤ Σ s_i(P̃) s_i(Q̃) for any orthogonal R, so rmsd² ≥
             # Σ (s_i(P̃) − s_i(Q̃))² / K in every rotation mode (minus round-off)
-            s1, s2 = idx.window_sums(jb, dil, w[sel], k)
-            scat = s2 - s1[:, :, None] * s1[:, None, :] / k
+            win = win_view[w[sel]]  # (m, d, k), a copy reused for the exact scores
+            pc = win - win.mean(axis=2, keepdims=True)
+            scat = pc @ pc.transpose(0, 2, 1)
             diag = np.diagonal(scat, axis1=1, axis2=2)
             sv_p = np.sqrt(np.maximum(_sym_eigvals(scat), 0.0))
             lb = np.sqrt(np.sum((sv_p - sv_q) ** 2, axis=1) / k) - 1e-7 * (
@@ -717,9 +690,7 @@ class IndexSearch:
             )
             if not self.prune:
                 lb = np.zeros_like(lb)
-            return lb, (diag if per_axis else diag.sum(axis=1))
-
-        win_view = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil]
+            return lb, (diag if per_axis else diag.sum(axis=1)), win
 
         dq = (b - a) * path.duration / self.bank.dt
         lo, hi = self.opts.time_scale
@@ -755,8 +726,8 @@ class IndexSearch:
             tau_w[still] = tau_q
             return np.hypot(shape, ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1)))
 
-        def score(sel: np.ndarray, sp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            win = win_view[w[sel]]  # (m, d, k), a copy: one matrix product for all S
+        def score(sel: np.ndarray, sp: np.ndarray, win: np.ndarray):
+            # one matrix product for all cross-covariances (Σ q̃ = 0: no window centring)
             s_ = (win.reshape(-1, k) @ qc).reshape(sel.size, qc.shape[1], qc.shape[1])
             sq_ = np.broadcast_to(sq, (sel.size, 3)) if per_axis else sq
             shape = rmsd_from_moments(s_, sp, sq_, k, mode)
@@ -793,13 +764,13 @@ class IndexSearch:
             todo = cand[pos : pos + self.chunk]
             todo = todo[lbw[todo] < tau]
             pos += self.chunk
-            lb2, sp = bound2(todo)
+            lb2, sp, win = bound2(todo)
             live = lb2 < tau
-            todo, sp = todo[live], sp[live]
+            todo, sp, win = todo[live], sp[live], win[live]
             keep, x_end = in_range(todo)
-            sp = sp[np.isin(todo, keep, assume_unique=True)]
-            todo = keep
-            r, shape = score(todo, sp)
+            inside = np.isin(todo, keep, assume_unique=True)
+            todo, sp, win = keep, sp[inside], win[inside]
+            r, shape = score(todo, sp, win)
             self.stats.scored += todo.size
             ok = np.flatnonzero(shape < gate)
             order = ok[np.argsort(r[ok])[:n_pool]]
