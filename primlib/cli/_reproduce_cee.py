@@ -7,20 +7,13 @@ import math
 
 import click
 
-from primlib.cli._reproduce import reproduce
+from primlib.cli._reproduce import reproduce, study_options
 
 __all__ = ["cee_mfac"]
 
 
 @reproduce.command("cee-mfac")
-@click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object.")
-@click.option(
-    "--plot",
-    "plot_dir",
-    type=click.Path(file_okay=False),
-    default=None,
-    help="Write the figures (like the paper's Figs. 4-6) into this directory.",
-)
+@study_options("like the paper's Figs. 4-6")
 @click.option(
     "--duration",
     type=click.FloatRange(min=0.0, min_open=True),

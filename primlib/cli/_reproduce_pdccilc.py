@@ -6,20 +6,13 @@ import json
 
 import click
 
-from primlib.cli._reproduce import reproduce
+from primlib.cli._reproduce import reproduce, study_options
 
 __all__ = ["pdccilc"]
 
 
 @reproduce.command("pdccilc")
-@click.option("--json", "as_json", is_flag=True, help="Print the results as one JSON object.")
-@click.option(
-    "--plot",
-    "plot_dir",
-    type=click.Path(file_okay=False),
-    default=None,
-    help="Write the figures (like the paper's Figs. 7-12) into this directory.",
-)
+@study_options("like the paper's Figs. 7-12")
 @click.option(
     "--iterations",
     type=click.IntRange(min=1),
