@@ -202,7 +202,6 @@ def main(argv=None) -> int:
             iterations=30,
             tol=1e-4,
             contour=False,
-            dense_limit=max(400, ref.shape[0]),
         )
         learn_rms.append(res.rms_total[-1])
         items.append((traj, np.asarray(res.u), stem, "bench: ILC on the true machine"))
@@ -263,7 +262,6 @@ def main(argv=None) -> int:
                 law="norm-optimal",
                 iterations=args.iterations,
                 contour=True,
-                dense_limit=max(400, ref.shape[0]),
             )
             rows[key].append((res.rms_total, res.rms_contour))
         firsts = " ".join(f"{k} {rows[k][-1][0][0]:.4f}" for k in keys)

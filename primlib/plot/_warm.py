@@ -75,13 +75,16 @@ def plot_warm_start(
     ax[0].legend(fontsize=7, loc="best")
 
     if warm is not None:
+        spliced = getattr(warm, "spliced", None)
         for i in range(warm.u.shape[1]):
-            ax[1].plot(t, warm.u[:, i], lw=1, label=f"u0 {axes[i]}")
+            line = ax[1].plot(t, warm.u[:, i], lw=1, label=f"u0 {axes[i]}")[0]
+            if spliced is not None and not np.array_equal(spliced, warm.u):
+                ax[1].plot(t, spliced[:, i], lw=0.8, ls=":", color=line.get_color())
         for b in warm.bands:
             if b.end > b.start:
                 ax[1].axvspan(b.start, b.end, color="orange", alpha=0.3, lw=0)
             ax[1].axvline(b.junction, color="k", lw=0.5, ls="--")
-        ax[1].set_title("warm-start input u0, junction bands shaded")
+        ax[1].set_title("warm-start input u0 (dotted: pieces before correction), bands shaded")
         ax[1].legend(fontsize=7)
     else:
         ax[1].text(
