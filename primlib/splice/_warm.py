@@ -237,12 +237,14 @@ def warm_start(
         then others of the machine up to 24 — before
         transforming (:func:`primlib.splice.refine_machine`): the stored signals were
         learned on the real machine, so they say how it differs from its model; the time
-        scale and axis mixing then use the refined model. Unmatched segments still get the
-        nominal-model inverse.
-    correction : {"input", "output", "junction", "none"}
-        Residual correction of the spliced input (:func:`primlib.splice.splice`): by
-        default the model inverse of what the pieces miss, so the model's error only
-        multiplies that small residual.
+        scale, the axis mixing and the residual correction then use the refined model.
+    correction : {"error", "input", "output", "junction", "none"}
+        Residual correction (:func:`primlib.splice.splice`). Default ``"error"``: the
+        inverse of the model in use of the path minus the model's error that the matched
+        pieces' stored pairs measured (time-scaled, rotated, accumulated along the path),
+        so the model's error only enters through what the library does not already know;
+        unmatched segments then get that model's inverse of the path. The others are kept
+        for comparison (benchmarks/bench_warm_start.py).
     match : Match, optional
         A match already computed for this path and machine (skips matching).
     **kw
