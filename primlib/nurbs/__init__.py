@@ -17,6 +17,7 @@ held and exchanged as a geomdl ``NURBS.Curve`` (``.nurbs``, JSON), and evaluated
 ``BSpline`` in homogeneous coordinates (w P, w).
 """
 
+from primlib.nurbs._batch import sample_many
 from primlib.nurbs._trajectory import DEFAULT_RTOL, MIN_SAMPLES, Trajectory
 
-__all__ = ["Trajectory", "DEFAULT_RTOL", "MIN_SAMPLES"]
+__all__ = ["Trajectory", "DEFAULT_RTOL", "MIN_SAMPLES", "sample_many"]

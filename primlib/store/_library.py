@@ -44,6 +44,10 @@ _CONFIG = {"autoinstall_known_extensions": False, "autoload_known_extensions": F
 _STEP_RTOL = 1e-6
 # A path that carries its own sample time must agree with the machine's to this relative.
 _DT_RTOL = 1e-9
+# A batch with at least this many bytes of points and signals is written straight into the
+# file at commit (a checkpoint) instead of through the write-ahead log (DuckDB's default
+# checkpoint threshold is 16 MiB).
+_DIRECT_BYTES = 16 * 2**20
 
 _INFO_COLUMNS = "id, name, machine, duration, dt, n_samples, dim, source, added"
 _INSERT_COLUMNS = [
@@ -65,22 +69,58 @@ _INSERT_COLUMNS = [
 ]
 
 
-def _list_array(flat: np.ndarray, offsets: np.ndarray) -> pa.LargeListArray:
-    """A list column over a flat float64 buffer and int64 offsets, without copying either."""
+def _list_array(flat: np.ndarray, offsets: np.ndarray) -> pa.Array:
+    """A list column over a flat float64 buffer and offsets, without copying the values.
+
+    32-bit offsets while they fit (DuckDB reads a ``ListArray`` a little faster than a
+    ``LargeListArray``), 64-bit beyond 2**31 values.
+    """
+    if offsets[-1] < 2**31:
+        return pa.ListArray.from_arrays(pa.array(offsets.astype(np.int32)), pa.array(flat))
     return pa.LargeListArray.from_arrays(pa.array(offsets), pa.array(flat))
 
 
-def _list_chunks(arrays: list[np.ndarray]) -> pa.ChunkedArray:
-    """A list column with one value per array, each a chunk over that array's own buffer."""
-    return pa.chunked_array(
-        [
-            pa.LargeListArray.from_arrays(
-                pa.array(np.array([0, a.size], dtype=np.int64)), pa.array(a.ravel())
-            )
-            for a in arrays
-        ],
-        type=pa.large_list(pa.float64()),
-    )
+def _sample_points(
+    checked: list[dict[str, Any]], dt: float, d: int, offsets: np.ndarray
+) -> np.ndarray:
+    """Every checked item's path on the machine grid, as one flat buffer (offsets in values).
+
+    Trajectories go through :func:`primlib.nurbs.sample_many` (one sparse basis product per
+    group of curves sharing degree, knots and sample count); other path objects through
+    their own ``sample``.
+    """
+    from primlib.nurbs import Trajectory, sample_many
+
+    native = [i for i, c in enumerate(checked) if isinstance(c["path"], Trajectory)]
+    if len(native) == len(checked):
+        out = sample_many([c["path"] for c in checked], dt)[0].reshape(-1)
+    else:
+        out = np.empty(int(offsets[-1]))
+        if native:
+            pts, _ = sample_many([checked[i]["path"] for i in native], dt)
+            rows = np.array([checked[i]["n"] for i in native], dtype=np.int64)
+            start = 0
+            for i, r in zip(native, rows, strict=True):
+                out[offsets[i] : offsets[i + 1]] = pts[start : start + r].ravel()
+                start += r
+        for i in sorted(set(range(len(checked))) - set(native)):
+            c = checked[i]
+            n = c["n"]
+            points = np.asarray(c["path"].sample(dt), dtype=np.float64)
+            if points.shape != (n, d):
+                raise InputError(
+                    f"{c['label']}: expected the path to sample to ({n}, {d}) finite points "
+                    f"at dt = {dt:g} s, got {points.shape}"
+                )
+            out[offsets[i] : offsets[i + 1]] = points.ravel()
+    if not np.isfinite(out).all():
+        bad = int(np.searchsorted(offsets, np.flatnonzero(~np.isfinite(out))[0], side="right"))
+        c = checked[bad - 1]
+        raise InputError(
+            f"{c['label']}: expected the path to sample to ({c['n']}, {d}) finite points at "
+            f"dt = {dt:g} s, got NaN or inf"
+        )
+    return out
 
 
 def _flat(column: pa.ChunkedArray) -> np.ndarray:
@@ -571,21 +611,26 @@ class Library:
         ]
 
         n = np.array([c["n"] for c in checked], dtype=np.int64)
+        sample_offsets = np.concatenate([[0], np.cumsum(n * d)]).astype(np.int64)
+        points = _sample_points(checked, dt, d, sample_offsets)
+        # one flat buffer per big column: one Arrow list array each (measured faster to
+        # insert than one chunk per primitive, the concatenation included)
+        signals = _list_array(np.concatenate([c["u"].ravel() for c in checked]), sample_offsets)
+        points = _list_array(points, sample_offsets)
         m = np.array([len(c["weights"]) for c in checked], dtype=np.int64)
         nk = np.array([len(c["knots"]) for c in checked], dtype=np.int64)
         ctrl_offsets = np.concatenate([[0], np.cumsum(m * d)])
         weight_offsets = np.concatenate([[0], np.cumsum(m)])
         knot_offsets = np.concatenate([[0], np.cumsum(nk)])
-        # The big columns stay in their own buffers, one chunk per primitive: concatenating
-        # 115 MB first (1,000 x 2,400 x 3 x 2 doubles) cost more than DuckDB's insert here.
-        points = _list_chunks([c["points"] for c in checked])
-        signals = _list_chunks([c["u"] for c in checked])
         knots = np.concatenate([c["knots"] for c in checked])
         ctrlpts = np.concatenate([c["ctrlpts"].ravel() for c in checked])
         weights = np.concatenate([c["weights"] for c in checked])
         added = utcnow()
 
-        registered = False
+        registered = direct = False
+        threads = int(con.sql("SELECT current_setting('threads')").fetchall()[0][0])
+        # One thread: the parallel (order-preserving) insert was 2-3x slower here.
+        con.execute("SET threads = 1")
         try:
             with self._transaction():
                 seq = con.sql(f"SELECT nextval('primitive_ids') FROM range({k})").fetchall()
@@ -615,10 +660,19 @@ class Library:
                 registered = True
                 cols = ", ".join(_INSERT_COLUMNS)
                 con.execute(f"INSERT INTO primitives ({cols}) SELECT {cols} FROM _primlib_batch")
+                if self._path is not None and 2 * sample_offsets[-1] * 8 >= _DIRECT_BYTES:
+                    # DuckDB's size estimate misses list contents, so a big batch would go
+                    # to the WAL first and be written again at the next checkpoint (close):
+                    # a low threshold makes the commit write it to the file once.
+                    con.execute("SET checkpoint_threshold = '1MiB'")
+                    direct = True
         finally:
             # after the rollback: an aborted transaction refuses even this
             if registered:
                 con.unregister("_primlib_batch")
+            if direct:
+                con.execute("RESET checkpoint_threshold")
+            con.execute(f"SET threads = {threads}")
         return ids.tolist()
 
     @staticmethod
@@ -679,12 +733,6 @@ class Library:
             )
         if not np.isfinite(u).all():
             raise InputError(f"{label}: expected a finite signal, got NaN or inf")
-        points = np.asarray(path.sample(dt), dtype=np.float64)
-        if points.shape != (n, d) or not np.isfinite(points).all():
-            raise InputError(
-                f"{label}: expected the path to sample to ({n}, {d}) finite points at "
-                f"dt = {dt:g} s, got {points.shape}"
-            )
         definition = path.definition()
         ctrlpts = np.asarray(definition["ctrlpts"], dtype=np.float64)
         weights = np.asarray(definition["weights"], dtype=np.float64).ravel()
@@ -697,7 +745,8 @@ class Library:
         return {
             "n": n,
             "u": u,
-            "points": points,
+            "path": path,
+            "label": label,
             "name": name,
             "source": source,
             "duration": duration,
