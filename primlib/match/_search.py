@@ -483,47 +483,66 @@ class ArcIndex:
         f = np.clip((g - g0) / np.where(g1 > g0, g1 - g0, 1.0), 0.0, 1.0)
         return self.x_all[i] + f * (self.x_all[i + 1] - self.x_all[i])
 
-    def half_moments(self, jb: int, dil: int, k: int, k1: int):
-        """Centroids and Σ|p − p̄|² of both halves (first k1 points, last k − k1) of every
-        window {m + i·dil, i < k} of level jb, m = 0, 1, ...
+    def sums(self, jb: int, dil: int) -> tuple[np.ndarray, np.ndarray, float]:
+        """Strided prefix sums of level jb for the windows {m + i·dil, i < n}, m = 0, 1, ...
 
-        Differences of per-residue cumulative sums, all windows in a few array passes (no
-        gathering); the sums are built once per (level, dilation). Returns
-        (c1 (M, d), c2 (M, d), e1 (M,), e2 (M,)).
+        Rows: the d coordinates, |p|², then the products p_a·p_b (a ≤ b), so the sums, the
+        centroid, the radius of gyration and the scatter matrix of any window come from two
+        columns: Σ_{i<n} f(p_{m+i·dil}) = P[:, m + n·dil] − P[:, m] (P[:, m] sums the
+        earlier points of m's phase m mod dil). Built once per (level, dilation).
+
+        Round-off: P is a running sum, P_{j+dil} = fl(P_j + f_j), so the difference of two
+        entries n steps apart carries only the n roundings between them:
+        |error| ≤ (n + 2)·u·max|P| (u = 2⁻⁵³), which ``seeds`` adds to its bounds.
+
+        Returns
+        -------
+        P : array, shape (c, L)
+            c = d + 1 + d(d + 1)/2 rows, L = (⌈M/dil⌉ + 1)·dil columns.
+        pmax : array, shape (c,)
+            max |P| per row.
+        radius : float
+            max |p| over the level's points.
         """
-        key = ("g", jb, dil)
-        lv = self.levels[jb]
-        m, d = lv.pts.shape
-        if key not in self.cache:
-            rows = -(-m // dil)
-            x = np.zeros((rows * dil, d + 1))
-            x[:m, :d] = lv.pts
-            x[:m, d] = np.einsum("ij,ij->i", lv.pts, lv.pts)
-            c = np.zeros((rows + 1, dil, d + 1))
-            np.cumsum(x.reshape(rows, dil, d + 1), axis=0, out=c[1:])
-            self.cache[key] = c
-        c = self.cache[key]
-        if c.shape[0] <= k:
-            e = np.zeros((0, d))
-            return e, e, np.zeros(0), np.zeros(0)
-        top = c.shape[0] - k
-        h1 = (c[k1 : k1 + top] - c[:top]).reshape(-1, d + 1)
-        h2 = (c[k : k + top] - c[k1 : k1 + top]).reshape(-1, d + 1)
-        k2 = k - k1
-        c1, c2 = h1[:, :d] / k1, h2[:, :d] / k2
-        e1 = h1[:, d] - k1 * np.einsum("ij,ij->i", c1, c1)
-        e2 = h2[:, d] - k2 * np.einsum("ij,ij->i", c2, c2)
-        return c1, c2, e1, e2
+        key = ("s", jb, dil)
+        hit = self.cache.get(key)
+        if hit is not None:
+            return hit
+        pts = self.levels[jb].pts
+        m, d = pts.shape
+        rows = -(-m // dil)
+        pairs = [(a, b) for a in range(d) for b in range(a, d)]
+        buf = np.zeros((d + 1 + len(pairs), rows + 1, dil))
+        flat = buf.reshape(buf.shape[0], -1)
+        flat[:d, dil : dil + m] = pts.T
+        for i, (a, b) in enumerate(pairs):
+            np.multiply(pts[:, a], pts[:, b], out=flat[d + 1 + i, dil : dil + m])
+        diag = [d + 1 + i for i, (a, b) in enumerate(pairs) if a == b]
+        np.sum(flat[diag, dil : dil + m], axis=0, out=flat[d, dil : dil + m])
+        radius = math.sqrt(float(flat[d].max()))
+        np.cumsum(buf, axis=1, out=buf)
+        out = (flat, np.maximum(flat.max(axis=1), -flat.min(axis=1)), radius)
+        self.cache[key] = out
+        return out
 
     @classmethod
     def build(cls, bank: BankArrays, points_per_sample: float = 0.25) -> ArcIndex:
+        # one pass per step over the flat buffer (offsets mark the primitives), no loop over
+        # primitives; each level is taken from the one below it (half the points)
         pts = bank.points
         counts = bank.counts
         k = bank.k
-        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        seg = np.empty(pts.shape[0] - 1)
+        for c0 in range(0, seg.size, 1 << 16):  # chunks: no (N, d) temporary
+            c1 = min(c0 + (1 << 16), seg.size)
+            dif = pts[c0 + 1 : c1 + 1] - pts[c0:c1]
+            np.sqrt(np.einsum("ij,ij->i", dif, dif), out=seg[c0:c1])
         # no arc across primitive boundaries
         seg[bank.offsets[1:-1] - 1] = 0.0
-        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        cum = np.empty(pts.shape[0])
+        cum[0] = 0.0
+        np.cumsum(seg, out=cum[1:])
+        del seg
         starts_arc = cum[bank.offsets[:-1]]
         length = cum[bank.offsets[1:] - 1] - starts_arc
         total = float(length.sum())
@@ -533,30 +552,34 @@ class ArcIndex:
         n_lv0 = np.floor(length / step0 + 1e-9).astype(np.int64) + 1
         prim = np.repeat(np.arange(k), n_lv0)
         base = np.concatenate([[0], np.cumsum(n_lv0)])
-        local = np.arange(base[-1]) - np.repeat(base[:-1], n_lv0)
+        local = np.arange(base[-1]) - base[:-1][prim]
         arc_local = local * step0
         # arc -> sample index per primitive: one interp on a globally monotone arc axis
         gap = np.arange(k) * (step0 * 4.0)  # separates primitives on the global axis
-        g_samples = cum + np.repeat(gap, counts)
-        g_samples = g_samples + np.arange(g_samples.size) * 1e-12 * max(step0, 1.0)
-        sample_idx = np.arange(pts.shape[0]) - np.repeat(bank.offsets[:-1], counts)
-        garc = arc_local + np.repeat(starts_arc + gap, n_lv0)
-        x = np.interp(garc, g_samples, sample_idx.astype(float))
-        x = np.minimum(x, np.repeat(counts - 1, n_lv0))
+        g_samples = np.repeat(gap, counts)
+        g_samples += cum
+        g_samples += np.arange(g_samples.size) * (1e-12 * max(step0, 1.0))
+        sample_idx = np.arange(pts.shape[0], dtype=float)
+        sample_idx -= np.repeat(bank.offsets[:-1].astype(float), counts)
+        garc = arc_local + (starts_arc + gap)[prim]
+        x = np.interp(garc, g_samples, sample_idx)
+        np.minimum(x, (counts - 1.0)[prim], out=x)
         p = linear_at(pts, bank.offsets[prim], counts[prim], x)
         cent = np.add.reduceat(p, base[:-1], axis=0) / n_lv0[:, None]
         p -= cent[prim]
-        left = np.repeat(length, n_lv0) - arc_local
+        left = length[prim] - arc_local
         levels = []
         lv = 0
+        longest = float(length.max())
         while True:
-            sel = (local % (1 << lv)) == 0 if lv else np.ones(local.size, bool)
-            pl = np.ascontiguousarray(p[sel])
-            levels.append(_Level(step0 * (1 << lv), pl, prim[sel], x[sel], garc[sel], left[sel]))
-            if sel.sum() <= 2 * k or (1 << lv) * step0 * 16 > length.max():
+            levels.append(_Level(step0 * (1 << lv), p, prim, x, garc, left))
+            if p.shape[0] <= 2 * k or (1 << lv) * step0 * 16 > longest:
                 break
+            sel = np.flatnonzero((local & 1) == 0)
+            p, prim, x, garc, left = p[sel], prim[sel], x[sel], garc[sel], left[sel]
+            local = local[sel] >> 1
             lv += 1
-        return cls(step0, tuple(levels), sample_idx.astype(float), g_samples)
+        return cls(step0, tuple(levels), sample_idx, g_samples)
 
 
 @dataclass
@@ -651,16 +674,47 @@ class IndexSearch:
         # k1k2/K·ΔD². Hence rmsd² ≥ (k1k2/K·ΔD² + Σ_h k_h Δg_h²)/K.
         k1 = k // 2
         k2 = k - k1
-        c1, c2, e1, e2 = idx.half_moments(jb, dil, k, k1)
-        c1, c2, e1, e2 = c1[:m_all], c2[:m_all], e1[:m_all], e2[:m_all]
-        dq_ = np.linalg.norm(qc[:k1].mean(axis=0) - qc[k1:].mean(axis=0))
-        gq1 = math.sqrt(float(np.sum((qc[:k1] - qc[:k1].mean(axis=0)) ** 2)) / k1)
-        gq2 = math.sqrt(float(np.sum((qc[k1:] - qc[k1:].mean(axis=0)) ** 2)) / k2)
-        dd = np.linalg.norm(c1 - c2, axis=1) - dq_
-        dg1 = np.sqrt(np.maximum(e1, 0.0) / k1) - gq1
-        dg2 = np.sqrt(np.maximum(e2, 0.0) / k2) - gq2
-        lb1 = np.sqrt((k1 * k2 / k * dd * dd + k1 * dg1 * dg1 + k2 * dg2 * dg2) / k)
-        lb1 -= 1e-7 * (g_q + lb1)  # round-off of the cumulative sums
+        d = qc.shape[1]
+        psum, pmax, radius = idx.sums(jb, dil)
+        u_ = 2.0**-53
+        # round-off of window sums of n ≤ k terms (see ArcIndex.sums), propagated: centroid
+        # coordinates, energies Σ|p − p̄|² (the subtraction |S|²/k included), and the
+        # bound by the triangle inequality on its weighted norm
+        err_c = (k + 2) * u_ * float(pmax[:d].max())
+        err_e = (k + 2) * u_ * float(pmax[d]) + 2 * math.sqrt(d) * radius * err_c
+        err_e += d * err_c * err_c + 8 * u_ * k * radius * radius
+        err_d = math.sqrt(d) * err_c * (1.0 / k1 + 1.0 / k2)
+        margin1 = math.sqrt((k1 * k2 / k * err_d * err_d + 2.0 * err_e) / k)
+        qh1, qh2 = qc[:k1], qc[k1:]
+        dq_ = float(np.linalg.norm(qh1.mean(axis=0) - qh2.mean(axis=0)))
+        gq1 = math.sqrt(float(np.sum((qh1 - qh1.mean(axis=0)) ** 2)) / k1)
+        gq2 = math.sqrt(float(np.sum((qh2 - qh2.mean(axis=0)) ** 2)) / k2)
+        # the two halves' sums for every window at once: contiguous slices, no gathering
+        p0 = psum[: d + 1, :m_all]
+        p1 = psum[: d + 1, k1 * dil : k1 * dil + m_all]
+        s1 = p1 - p0
+        s2 = psum[: d + 1, k * dil : k * dil + m_all] - p1
+        dd = s1[:d] * (1.0 / k1) - s2[:d] * (1.0 / k2)  # c1 − c2
+        dd = np.sqrt(np.einsum("ij,ij->j", dd, dd))
+        dd -= dq_
+        e1 = s1[d] - np.einsum("ij,ij->j", s1[:d], s1[:d]) * (1.0 / k1)
+        e2 = s2[d] - np.einsum("ij,ij->j", s2[:d], s2[:d]) * (1.0 / k2)
+        np.maximum(e1, 0.0, out=e1)
+        np.maximum(e2, 0.0, out=e2)
+        dg1 = np.sqrt(e1 * (1.0 / k1))
+        dg1 -= gq1
+        dg2 = np.sqrt(e2 * (1.0 / k2))
+        dg2 -= gq2
+        dd *= dd
+        dd *= k1 * k2 / k / k
+        dg1 *= dg1
+        dg1 *= k1 / k
+        dg2 *= dg2
+        dg2 *= k2 / k
+        dd += dg1
+        dd += dg2
+        lb1 = np.sqrt(dd, out=dd)
+        lb1 -= margin1 + 1e-12 * (g_q + lb1)
         if not self.prune:
             lb1 = np.zeros_like(lb1)  # the exhaustive scan: every window gets scored
         # chord lengths under-estimate arc length a little (more for the stored samples than
@@ -672,25 +726,35 @@ class IndexSearch:
         self.stats.bounded += w.size
         if w.size == 0:
             return []
-        sv_q = np.sqrt(np.maximum(_sym_eigvals((qc.T @ qc)[None]), 0.0))[0]
+        scat_q = (qc.T @ qc)[None]
+        sv_q = np.sqrt(np.maximum(_sym_eigvals(scat_q), 0.0))[0]
+        pairs = [(i, j) for i in range(d) for j in range(i, d)]
+        # closed-form eigenvalues: acos near ±1 and the rest cost at most 1e-7·trace
+        err_q = math.sqrt(d * 1e-7 * float(np.trace(scat_q[0])) / k)
+        err_pp = (k + 2) * u_ * float(pmax[d + 1 :].max())
+        err_m = d * (err_pp + 2 * radius * err_c + err_c * err_c / k)  # ‖E‖_F of a scatter
 
         win_view = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil]
 
         def bound2(sel: np.ndarray):
-            # the principal values of the windows' scatter matrices. von Neumann:
-            # tr(R P̃ᵀQ̃) ≤ Σ s_i(P̃) s_i(Q̃) for any orthogonal R, so rmsd² ≥
-            # Σ (s_i(P̃) − s_i(Q̃))² / K in every rotation mode (minus round-off)
-            win = win_view[w[sel]]  # (m, d, k), a copy reused for the exact scores
-            pc = win - win.mean(axis=2, keepdims=True)
-            scat = pc @ pc.transpose(0, 2, 1)
-            diag = np.diagonal(scat, axis1=1, axis2=2)
+            # the principal values of the windows' scatter matrices, from the prefix sums.
+            # von Neumann: tr(R P̃ᵀQ̃) ≤ Σ s_i(P̃) s_i(Q̃) for any orthogonal R, so rmsd² ≥
+            # Σ (s_i(P̃) − s_i(Q̃))² / K in every rotation mode. Round-off: Weyl moves each
+            # eigenvalue by ≤ ‖E‖ (+ the closed form's 1e-7·trace), |√a − √b| ≤ √|a − b|
+            ws = w[sel]
+            s = psum[:, ws + k * dil] - psum[:, ws]  # (c, m)
+            scat = np.empty((ws.size, d, d))
+            for i, (a_, b_) in enumerate(pairs):
+                v = s[d + 1 + i] - s[a_] * s[b_] * (1.0 / k)
+                scat[:, a_, b_] = v
+                scat[:, b_, a_] = v
             sv_p = np.sqrt(np.maximum(_sym_eigvals(scat), 0.0))
-            lb = np.sqrt(np.sum((sv_p - sv_q) ** 2, axis=1) / k) - 1e-7 * (
-                g_q + np.sqrt(np.sum(sv_p**2, axis=1) / k)
-            )
+            tr = np.maximum(s[d] - np.einsum("ij,ij->j", s[:d], s[:d]) * (1.0 / k), 0.0)
+            lb = np.sqrt(np.sum((sv_p - sv_q) ** 2, axis=1) / k)
+            lb -= np.sqrt(d * (err_m + 1e-7 * tr) / k) + err_q + 1e-12 * (g_q + lb)
             if not self.prune:
                 lb = np.zeros_like(lb)
-            return lb, (diag if per_axis else diag.sum(axis=1)), win
+            return lb
 
         dq = (b - a) * path.duration / self.bank.dt
         lo, hi = self.opts.time_scale
@@ -726,8 +790,14 @@ class IndexSearch:
             tau_w[still] = tau_q
             return np.hypot(shape, ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1)))
 
-        def score(sel: np.ndarray, sp: np.ndarray, win: np.ndarray):
-            # one matrix product for all cross-covariances (Σ q̃ = 0: no window centring)
+        def score(sel: np.ndarray):
+            # the exact scores in float64 from the gathered windows (m, d, k): one matrix
+            # product for all cross-covariances (Σ q̃ = 0: no window centring)
+            win = win_view[w[sel]]
+            pc = win - win.mean(axis=2, keepdims=True)
+            sp = np.einsum("mak,mak->ma", pc, pc)
+            if not per_axis:
+                sp = sp.sum(axis=1)
             s_ = (win.reshape(-1, k) @ qc).reshape(sel.size, qc.shape[1], qc.shape[1])
             sq_ = np.broadcast_to(sq, (sel.size, 3)) if per_axis else sq
             shape = rmsd_from_moments(s_, sp, sq_, k, mode)
@@ -764,13 +834,9 @@ class IndexSearch:
             todo = cand[pos : pos + self.chunk]
             todo = todo[lbw[todo] < tau]
             pos += self.chunk
-            lb2, sp, win = bound2(todo)
-            live = lb2 < tau
-            todo, sp, win = todo[live], sp[live], win[live]
-            keep, x_end = in_range(todo)
-            inside = np.isin(todo, keep, assume_unique=True)
-            todo, sp, win = keep, sp[inside], win[inside]
-            r, shape = score(todo, sp, win)
+            todo = todo[bound2(todo) < tau]
+            todo, x_end = in_range(todo)
+            r, shape = score(todo)
             self.stats.scored += todo.size
             ok = np.flatnonzero(shape < gate)
             order = ok[np.argsort(r[ok])[:n_pool]]
