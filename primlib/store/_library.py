@@ -124,11 +124,17 @@ def _sample_points(
 
 
 def _flat(column: pa.ChunkedArray) -> np.ndarray:
-    """The values of a list column, concatenated, as float64 numpy (zero copy when possible)."""
-    arr = column.combine_chunks()
-    if len(arr) == 0:
+    """The values of a list column, concatenated, as float64 numpy.
+
+    Zero copy for one chunk (what DuckDB returns up to a million rows): ``flatten`` slices
+    the values buffer by the first and last offset and numpy wraps that slice. Several
+    chunks cost one concatenation.
+    """
+    values = [chunk.flatten() for chunk in column.chunks if len(chunk)]
+    parts = [v.to_numpy(zero_copy_only=v.null_count == 0) for v in values]
+    if not parts:
         return np.zeros(0)
-    return arr.flatten().to_numpy(zero_copy_only=False)
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def _is_duckdb_file(path: Path) -> bool:
