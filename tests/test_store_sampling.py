@@ -64,6 +64,17 @@ def test_sample_many_equals_each_trajectory_s_sample(specs, d):
         np.testing.assert_array_equal(got[[0, -1]], path.ctrlpts[[0, -1]])
 
 
+@pytest.mark.parametrize("rational", [False, True])
+@pytest.mark.parametrize("p", [1, 3, 5])
+def test_sample_many_shares_one_basis_across_a_group(p, rational):
+    # seeds 0, 3, 6, ... share their knots: groups of 40 go through the sparse basis product
+    # (in chunks of 32), beside a singleton of other knots sampled on its own
+    paths = [curve(s, m=9, p=p, rational=rational) for s in range(0, 120, 3)] + [curve(1)]
+    points, offsets = sample_many(paths, DT)
+    for i, path in enumerate(paths):
+        _close(points[offsets[i] : offsets[i + 1]], path.sample(DT))
+
+
 def test_sample_many_on_fitted_paths_sharing_knots():
     t = np.arange(601) * DT
     paths = [

@@ -19,6 +19,8 @@ __all__ = ["sample_many"]
 
 # curves per sparse product (keeps the product a few MB for n of a few thousand)
 _CHUNK = 32
+# smaller groups are sampled curve by curve (Trajectory.sample): measured break-even ~3
+_MIN_GROUP = 3
 
 
 def sample_many(trajectories: Sequence[Any], dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -66,6 +68,11 @@ def sample_many(trajectories: Sequence[Any], dt: float) -> tuple[np.ndarray, np.
         groups.setdefault(key, []).append(i)
 
     for (p, n, rational, _), members in groups.items():
+        if len(members) < _MIN_GROUP:
+            # building the sparse basis costs more than one spline evaluation
+            for i in members:
+                out[offsets[i] : offsets[i + 1]] = trajectories[i].sample(dt)
+            continue
         knots = trajectories[members[0]].knots
         v = np.arange(n) / (n - 1)
         basis = BSpline.design_matrix(v, knots, p)  # sparse (n, m), p + 1 entries a row
