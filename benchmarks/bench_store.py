@@ -5,10 +5,15 @@
 Figures (goals from issue 2), each beside a baseline measured in the same run:
 
 * ingest k = 1,000 primitives (3 axes, n = 2,400 samples) into a FILE library through
-  ``Library.add_many`` in one batch (checks, sampling each path on the machine grid, Arrow
-  list columns over the flat buffers, one INSERT, commit): goal <= 1 s. Baseline: the same
-  rows through ``executemany`` (parameters prepared as Python lists beforehand, so only the
-  database work is timed) on a subset, scaled to k.
+  ``Library.add_many`` in one batch (checks, ``sample_many`` of the paths on the machine
+  grid, one Arrow list per big column, one INSERT, commit -- which for a batch this big
+  includes DuckDB's checkpoint into the file): goal <= 1 s. The close that follows is a line
+  of its own, and the sum too. Baselines, same run: the previous data path (each path's
+  ``Trajectory.sample``, one Arrow chunk per primitive, DuckDB's default threads, the batch
+  through the WAL, written again by the checkpoint at close), and ``executemany`` of the
+  same rows (parameters prepared as Python lists beforehand) on a subset, scaled to k.
+  The sampling alone: ``sample_many`` against a ``Trajectory.sample`` loop, and their
+  largest difference (must be <= 1e-12 of the largest coordinate).
 * loading the bank back (``Library.bank``: one columnar query to Arrow to flat numpy) from a
   freshly opened file: goal <= 0.2 s. The bank holds the points matching reads; its signals
   come with a second query on first use, timed as well. Baseline: a row loop, one indexed
