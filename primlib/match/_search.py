@@ -592,6 +592,7 @@ class IndexSearch:
     target_points: int = 16
     phase_bits: int = 1
     pool: int = 2
+    pool_cap: int = 48
     chunk: int = 8192
     prune: bool = True
     stats: _Stats = field(default_factory=_Stats)
@@ -843,14 +844,24 @@ class IndexSearch:
             r, shape = score(todo)
             self.stats.scored += todo.size
             ok = np.flatnonzero(shape < gate)
-            order = ok[np.argsort(r[ok])[:n_pool]]
+            order = ok[np.argsort(r[ok])[: self.pool_cap]]
             for t in order:
                 c = Candidate(int(lv.prim[w[todo[t]]]), float(lv.x[w[todo[t]]]), float(x_end[t]),
                               float(r[t]))  # fmt: skip
                 where[(c.prim, c.x0)] = int(w[todo[t]])
                 pool.append(c)
-            pool = _suppress(pool, n_pool)
-            tau = min(pool[-1].score, gate) if len(pool) == n_pool else gate
+            # the best n_pool windows, and every other window within √2·gate of the best
+            # (a stored copy scores below √2·gate, so near-duplicates differing only in
+            # speed profile tie on the window grid; the sub-step re-scoring below parts
+            # them), at most pool_cap: no window at or above tau can enter
+            pool = _suppress(pool, self.pool_cap)
+            tie = pool[0].score + math.sqrt(2.0) * gate if pool else math.inf
+            pool = [c for i, c in enumerate(pool) if i < n_pool or c.score < tie]
+            tau = gate
+            if len(pool) >= n_pool:
+                tau = min(tau, max(pool[n_pool - 1].score, tie))
+            if len(pool) == self.pool_cap:
+                tau = min(tau, pool[-1].score)
         if not pool:
             return []
         # the window grid puts a stored copy up to half a base step from a window start:
@@ -870,6 +881,11 @@ class IndexSearch:
                 for i, c in zip(rows, pool, strict=True)
                 if np.isfinite(r[i, best[i]])
             ],
-            m,
+            self.pool_cap,
         )
-        return kept
+        # after the re-scoring a stored copy starts within an eighth of a base step of a
+        # shift: it scores below √2·(3·eps + Δ_b/8). Every window within that of the best
+        # may be it (near-duplicates differing only in speed profile): all become seeds
+        # (at least m), and the exact check decides
+        tie = kept[0].score + math.sqrt(2.0) * (3.0 * eps + 0.125 * lv.step) if kept else 0.0
+        return [c for i, c in enumerate(kept) if i < m or c.score < tie]
