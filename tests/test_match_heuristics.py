@@ -38,6 +38,16 @@ def test_near_duplicates_in_speed_profile_are_told_apart(first, eps):
     _check_segments(bank, pts, segs, eps)
 
 
+def test_near_duplicates_never_cut_more_segments_than_the_time_grid():
+    # the time grid keeps its best 3 seeds after suppression: here it cuts 4 segments for
+    # 2 pieces (the first piece goes to neighbouring copies), the index search 2
+    bank = _near_duplicates()
+    pts, _ = _compose(bank, [(7, 0.1, 0.5, 0.8), (9, 0.5, 0.9, 1.3)], seed=5)
+    segs, _ = segment_path(bank, pts, DT, 0.05)
+    grid, _ = segment_path(bank, pts, DT, 0.05, search="grid")
+    assert len(segs) == 2 <= len(grid)
+
+
 @pytest.mark.parametrize(
     "spec",
     [

@@ -34,15 +34,27 @@ differ only in how fast they find the seeds:
     by the Kabsch RMSD of its arc samples combined with ℓ times the RMS difference of the
     normalised time at the samples (the speed profile), and windows are scored best-first
     in order of provable lower bounds of that RMSD — a half-window bound on every window
-    (radii of gyration of both halves and the rigid distance between their centroids, from
-    cumulative sums) and the principal-value bound Σ(s_i(P) − s_i(Q))²/K (von Neumann's
-    trace inequality) on the survivors — until no unscored window's bound is below the
-    pool's worst score or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer level's
-    step; a stored copy starts within Δ_b/2 of a window): the pool is exactly the best windows of
-    scoring them all. The pool is re-scored at sub-step shifts of its windows' starts and
-    the best few distinct windows become the seeds. ``prune=False`` (``search="scan"``)
-    scores every window instead: the same seeds, which the benchmark checks on 1,000
-    primitives; it also checks the segmentation against ``GridSearch`` on 100.
+    (radii of gyration of both halves and the rigid distance between their centroids) and
+    the principal-value bound Σ(s_i(P) − s_i(Q))²/K (von Neumann's trace inequality) on
+    the survivors, both from strided prefix sums of the coordinates and their products
+    (:meth:`ArcIndex.sums`, no window gathered; the bounds are lowered by a proven
+    round-off margin), exact float64 scores only for what passes — until no unscored
+    window's bound is below the pool's threshold or the gate 3ε + Δ_b/2 on the shape RMSD
+    (Δ_b the finer level's step; a stored copy starts within Δ_b/2 of a window). The pool
+    holds the best 2·seeds windows and every other window within √2·gate of the best (at
+    most ``pool_cap``): near-duplicate primitives that differ only in speed profile tie on
+    the window grid, so the pool keeps all of them. The pool is re-scored at sub-step
+    shifts of its windows' starts (a copy is then within Δ_b/8 of a shift); the best
+    ``seeds`` distinct windows, and every other one within √2·(3ε + Δ_b/8) of the best,
+    become the seeds, which the exact check decides between.
+
+    The gate is a heuristic, not a theorem: a copy within ε in uniform time can have a
+    longer arc than ε allows for when the path wiggles fast (tests/test_match_heuristics.py:
+    a period of 3 samples at RMS 0.7ε breaks it; 4 samples does not). ``prune=False``
+    (``search="scan"``) scores every window instead: the same seeds, which the benchmark
+    checks on 1,000 primitives; it also checks the segmentation against ``GridSearch`` on
+    100. (``GridSearch`` itself keeps only its best few seeds: on the near-duplicates it
+    cuts more segments than the index search.)
 """
 
 from __future__ import annotations
