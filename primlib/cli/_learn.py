@@ -48,7 +48,8 @@ def run_learning(
     """
     from primlib.ilc import learn as ilc_learn
     from primlib.ilc import learn_master_slave
-    from primlib.splice import DEFAULT_EPS, warm_start
+    from primlib.match import default_eps
+    from primlib.splice import warm_start
 
     m = lib.machine(machine_name)
     master_slave = law.lower() in MASTER_SLAVE_LAWS
@@ -64,7 +65,7 @@ def run_learning(
     ws = None
     u0 = None
     if not cold:
-        e = eps if eps is not None else DEFAULT_EPS * (trajectory.extent or 1.0)
+        e = eps if eps is not None else default_eps(trajectory)
         try:
             ws = warm_start(lib, trajectory, machine_name, e, band=band)
             u0 = ws.u

@@ -58,7 +58,10 @@ def _table(mt, duration: float) -> str:
     "--eps",
     type=float,
     default=None,
-    help="Kabsch RMSD tolerance per segment (path units). Default: 1 % of the path's extent.",
+    help=(
+        "Kabsch RMSD tolerance per segment (path units). Default: 3e-4 of the path's "
+        "extent, as for the warm start and learn."
+    ),
 )
 @click.option(
     "--rotation",
@@ -112,6 +115,7 @@ def match(
     primlib match new_path.csv --machine xyz --json --plot match.png --out u0.csv
     """
     from primlib.cli._library import _open
+    from primlib.match import default_eps
     from primlib.nurbs import Trajectory
 
     if eps is not None and not (np.isfinite(eps) and eps > 0):
@@ -127,7 +131,7 @@ def match(
                 f"{path_csv}: expected a {m.dim}-D path for machine {machine_name!r}, "
                 f"got {traj.dim}-D"
             )
-        e = eps if eps is not None else 0.01 * (traj.extent or 1.0)
+        e = eps if eps is not None else default_eps(traj)
         kw = {"rotation": rotation, "time_scale": tuple(time_scale)}
         ws = None
         if out_file is not None:

@@ -12,7 +12,13 @@ Notation: a piece is K points at uniform time; P the stored piece, Q the new pat
 from primlib.match._bank import BankArrays
 from primlib.match._kabsch import KabschResult, kabsch, rmsd_from_moments
 from primlib.match._search import ArcIndex, SearchOptions
-from primlib.match._segment import match_path, matched_pieces, segment_path
+from primlib.match._segment import (
+    DEFAULT_EPS,
+    default_eps,
+    match_path,
+    matched_pieces,
+    segment_path,
+)
 from primlib.match._types import Match, Segment
 
 __all__ = [
@@ -23,6 +29,8 @@ __all__ = [
     "rmsd_from_moments",
     "segment_path",
     "match_path",
+    "DEFAULT_EPS",
+    "default_eps",
     "matched_pieces",
     "SearchOptions",
     "BankArrays",

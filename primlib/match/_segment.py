@@ -399,3 +399,24 @@ def matched_pieces(segments, bank: Any, n: int = 200) -> list[np.ndarray | None]
         p = cubic_at(bank.points, bank.offsets[i], n_p, x)
         out.append(p @ np.asarray(seg.rotation).T + np.asarray(seg.translation))
     return out
+
+
+# Default match tolerance, relative to the path's extent. One number for `primlib match`, the
+# warm start and `primlib learn`: the warm start's first-trial error follows the pieces' shape
+# error, so a tight match pays (3e-4 of a 70 mm path is 0.02 mm).
+DEFAULT_EPS = 3e-4
+
+
+def default_eps(path) -> float:
+    """The default Kabsch RMSD tolerance for ``path``: ``DEFAULT_EPS`` times its extent.
+
+    Parameters
+    ----------
+    path : Trajectory
+
+    Returns
+    -------
+    eps : float
+        In the path's units (1 for a path of zero extent).
+    """
+    return DEFAULT_EPS * (path.extent or 1.0)

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import InputError, NoMatchError
+from primlib.match import DEFAULT_EPS, default_eps
 from primlib.splice._splice import Band, StoredSignal, splice
 
 __all__ = [
@@ -27,9 +28,6 @@ __all__ = [
     "DEFAULT_EPS",
 ]
 
-# default match tolerance, relative to the path's extent: the warm start's first-trial error
-# follows the pieces' shape error, so a tight match pays (3e-4 of a 70 mm path is 0.02 mm)
-DEFAULT_EPS = 3e-4
 
 # normalised-time samples on which two stored paths are compared for "same primitive"
 _VERSION_SAMPLES = 64
@@ -354,7 +352,7 @@ def learn_signal(
     ref = pts - pts[0]
     u0 = None
     if not cold:
-        e = eps if eps is not None else DEFAULT_EPS * (traj.extent or 1.0)
+        e = eps if eps is not None else default_eps(traj)
         try:
             u0 = warm_start(library, traj, machine, e).u
         except NoMatchError:
