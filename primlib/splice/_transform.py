@@ -212,6 +212,29 @@ def holding_input(machine, offset) -> np.ndarray:
     return out
 
 
+def _default_n(n_l: int, dt: float, k: float, offset: float) -> int:
+    """Output length that covers the whole primitive: ``round((T_l / k - offset) / dt) + 1``."""
+    return int(round(((n_l - 1) * dt / k - offset) / dt)) + 1
+
+
+def _onto_new_grid(
+    samples: np.ndarray, dt: float, k: float, rot: np.ndarray, offset: float, n: int
+) -> np.ndarray:
+    """Stored samples (n_l, d) on the dt grid, read at primitive time ``k (offset + i dt)``
+    for i < n and rotated: zero before the primitive starts, the last sample held after it
+    ends; off the stored grid a cubic spline through the samples."""
+    n_l = samples.shape[0]
+    if k == 1.0 and abs(offset) <= 1e-12:
+        return samples[np.minimum(np.arange(n), n_l - 1)] @ rot.T
+    from scipy.interpolate import CubicSpline
+
+    tau = k * (offset + np.arange(n) * dt)
+    t_l = np.arange(n_l) * dt
+    y = CubicSpline(t_l, samples, axis=0)(np.clip(tau, 0.0, t_l[-1]))
+    y[tau < 0] = 0.0
+    return y @ rot.T
+
+
 def transform(
     machine,
     u,
@@ -260,7 +283,7 @@ def transform(
     if not (-dt - 1e-12 < offset <= 1e-12):
         raise InputError(f"offset: expected a start time in (-dt, 0] = (-{dt}, 0], got {offset}")
     if n is None:
-        n = int(round(((n_l - 1) * dt / k - offset) / dt)) + 1
+        n = _default_n(n_l, dt, k, offset)
     n = int(n)
     if n < 2:
         raise InputError(f"n: expected an output length >= 2, got {n}")
@@ -338,18 +361,8 @@ def piece_path(
     n_l = u.shape[0]
     offset = float(offset)
     if n is None:
-        n = int(round(((n_l - 1) * dt / k - offset) / dt)) + 1
-    n = int(n)
-    y_l = pts - pts[0]
-    if k == 1.0 and abs(offset) <= 1e-12:
-        return y_l[np.minimum(np.arange(n), n_l - 1)] @ rot.T
-    from scipy.interpolate import CubicSpline
-
-    tau = k * (offset + np.arange(n) * dt)
-    t_l = np.arange(n_l) * dt
-    y = CubicSpline(t_l, y_l, axis=0)(np.clip(tau, 0.0, t_l[-1]))
-    y[tau < 0] = 0.0
-    return y @ rot.T
+        n = _default_n(n_l, dt, k, offset)
+    return _onto_new_grid(pts - pts[0], dt, k, rot, offset, int(n))
 
 
 def piece_error(
@@ -389,20 +402,13 @@ def piece_error(
     k = _check_k(k)
     dt = machine.dt
     n_l = u.shape[0]
+    offset = float(offset)
     if n is None:
-        n = int(round(((n_l - 1) * dt / k - float(offset)) / dt)) + 1
+        n = _default_n(n_l, dt, k, offset)
     n = int(n)
     ref = None if reference is None else _check_u(machine, reference, "reference")
     err = (pts - pts[0]) - machine.simulate(u, ref)
-    if k == 1.0 and abs(float(offset)) <= 1e-12:
-        return err[np.minimum(np.arange(n), n_l - 1)] @ rot.T
-    from scipy.interpolate import CubicSpline
-
-    tau = k * (float(offset) + np.arange(n) * dt)
-    t_l = np.arange(n_l) * dt
-    e = CubicSpline(t_l, err, axis=0)(np.clip(tau, 0.0, t_l[-1]))
-    e[tau < 0] = 0.0
-    return e @ rot.T
+    return _onto_new_grid(err, dt, k, rot, offset, n)
 
 
 def time_scale(
