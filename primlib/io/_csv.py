@@ -208,7 +208,12 @@ def write_table(
     if not np.isfinite(table).all():
         raise InputError(f"{path}: expected finite values to write, got NaN or inf")
     rows = "\n".join(",".join(map(repr, row)) for row in table.tolist())
-    content = _fmt_header(header) + "\n" + rows + ("\n" if rows else "")
+    write_text_atomic(path, _fmt_header(header) + "\n" + rows + ("\n" if rows else ""))
+
+
+def write_text_atomic(path: Path, content: str) -> None:
+    """Write ``content`` (UTF-8, ``\\n`` line ends, mode 0644) to a temporary file in the same
+    folder, then rename it to ``path``: a failure never leaves half a file."""
     directory = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:

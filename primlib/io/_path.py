@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from primlib._errors import InputError
-from primlib.io._csv import read_uniform_table, write_table
+from primlib.io._csv import read_uniform_table, write_table, write_text_atomic
 
 __all__ = ["PATH_HEADERS", "read_path_csv", "write_path_csv", "read_path_json", "write_path_json"]
 
@@ -95,14 +94,4 @@ def read_path_json(path: str | os.PathLike) -> Any:
 def write_path_json(path: str | os.PathLike, data: Any) -> None:
     """Write a JSON document atomically (temporary file in the same folder, then rename)."""
     path = Path(path)
-    content = json.dumps(data, indent=1)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.fchmod(fd, 0o644)
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(content + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_text_atomic(path, json.dumps(data, indent=1) + "\n")
