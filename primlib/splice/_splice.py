@@ -531,10 +531,10 @@ def splice(
                 else:
                     full = transform(machine, w, rotation=rot, n=n_out)
                     how = "direct"
+            # where this piece goes: time scale, rotation, grid offset, length, PID reference
+            placement = dict(k=k, rotation=rot, offset=offset, n=n_out, reference=ref)
             if not use_direct:
-                full = transform(
-                    machine, u_l, k=k, rotation=rot, offset=offset, n=n_out, reference=ref
-                )
+                full = transform(machine, u_l, **placement)
                 how = "identity" if on_grid and np.allclose(rot, np.eye(machine.dim)) else how
             hold = holding_input(machine, p)[None, :]
             full = full + hold
@@ -544,30 +544,12 @@ def splice(
             if lo < m0:  # band reaches before the primitive starts: at rest there
                 piece[lo:m0] = hold
             if correction == "error":
-                err = piece_error(
-                    machine,
-                    u_l,
-                    prim.points,
-                    k=k,
-                    rotation=rot,
-                    offset=offset,
-                    n=n_out,
-                    reference=ref,
-                )
+                err = piece_error(machine, u_l, prim.points, **placement)
                 inc = np.diff(err, axis=0, prepend=err[:1])
                 slope_j[idx[keep]] = inc[keep]
                 slope_j[max(lo, m0)] = 0.0  # the error accumulated before the window is not ours
             if correction in ("error", "input", "output"):
-                y_full = piece_path(
-                    machine,
-                    u_l,
-                    prim.points,
-                    k=k,
-                    rotation=rot,
-                    offset=offset,
-                    n=n_out,
-                    reference=ref,
-                )
+                y_full = piece_path(machine, u_l, prim.points, **placement)
                 path_j[idx[keep]] = y_full[keep] + p
                 if correction == "input":
                     v = model_inverse(machine, y_full, reference=y_full if feedback else None)
