@@ -192,22 +192,20 @@ def test_example_builds_the_library_and_learns(tmp_path):
     runner = CliRunner()
     db = tmp_path / "example.duckdb"
     fig = tmp_path / "warm.png"
-    res = runner.invoke(
-        main,
-        [
-            "--db",
-            str(db),
-            "example",
-            "--data",
-            str(ROOT / "data"),
-            "--path",
-            "corner-and-arc",
-            "--iterations",
-            "1",
-            "--plot",
-            str(fig),
-        ],
-    )
+    example = [
+        "--db",
+        str(db),
+        "example",
+        "--data",
+        str(ROOT / "data"),
+        "--path",
+        "corner-and-arc",
+        "--iterations",
+        "1",
+        "--plot",
+        str(fig),
+    ]
+    res = runner.invoke(main, example)
     assert res.exit_code == 0, res.output
     assert "warm start from" in res.output
     assert fig.read_bytes()[:4] == b"\x89PNG"
@@ -224,23 +222,8 @@ def test_example_builds_the_library_and_learns(tmp_path):
             p = lib.get(info.id)
             err = np.sqrt(np.mean((m.simulate(p.signal) - (p.points - p.points[0])) ** 2))
             assert err < 1e-3, info.name
-    # a second run reuses the library (no duplicates)
-    res = runner.invoke(
-        main,
-        [
-            "--db",
-            str(db),
-            "example",
-            "--data",
-            str(ROOT / "data"),
-            "--path",
-            "corner-and-arc",
-            "--iterations",
-            "1",
-            "--plot",
-            str(fig),
-        ],
-    )
+    # a second run of the same command reuses the library (no duplicates)
+    res = runner.invoke(main, example)
     assert res.exit_code == 0, res.output
     with Library(db, read_only=True) as lib:
         assert len(lib.primitives("xyz")) == len(stems)
