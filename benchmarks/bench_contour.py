@@ -15,7 +15,6 @@ fraction of the path extent. Goals: difference <= 1e-6 of the extent, ratio >= 1
 
 from __future__ import annotations
 
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -23,6 +22,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _timing import median_time  # noqa: E402
 
 from primlib.contour import brute_force_contour_error, contour_error  # noqa: E402
 from primlib.nurbs import Trajectory  # noqa: E402
@@ -43,15 +44,6 @@ def _path() -> Trajectory:
     return Trajectory.from_samples(pts, DT)
 
 
-def _median(fn, repeat):
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
-
-
 def main() -> int:
     path = _path()
     rng = np.random.default_rng(0)
@@ -61,9 +53,9 @@ def main() -> int:
     actual = lagged + rng.normal(scale=0.05, size=lagged.shape)
     extent = path.extent
 
-    fast_s, e_fast = _median(lambda: contour_error(path, t, actual, "exact"), 3)
-    lin_s, _ = _median(lambda: contour_error(path, t, actual, "linear"), 3)
-    circ_s, _ = _median(lambda: contour_error(path, t, actual, "circular"), 3)
+    fast_s, e_fast = median_time(lambda: contour_error(path, t, actual, "exact"), 3)
+    lin_s, _ = median_time(lambda: contour_error(path, t, actual, "linear"), 3)
+    circ_s, _ = median_time(lambda: contour_error(path, t, actual, "circular"), 3)
 
     sub = np.sort(rng.choice(N_POINTS, N_SUBSET, replace=False))
     t0 = time.perf_counter()

@@ -31,19 +31,11 @@ from scipy.sparse.linalg import svds  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout too
 
+from _timing import median_time  # noqa: E402
+
 from primlib.ilc._lifted import lifted_master_slave  # noqa: E402
 from primlib.ilc._ms_law import master_slave_law  # noqa: E402
 from primlib.reproduce._pdccilc import contour_reference, paper_machine  # noqa: E402
-
-
-def median_time(fn, repeat):
-    times = []
-    out = None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)), out
 
 
 def main() -> None:

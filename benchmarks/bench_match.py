@@ -35,6 +35,7 @@ from pathlib import Path  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from anywhere
 
 import numpy as np  # noqa: E402
+from _timing import median_time  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 from primlib.match import _segment, segment_path  # noqa: E402
@@ -113,15 +114,6 @@ def key(segments) -> list[tuple[float, int | None]]:
     return [(round(s.end, 9), s.primitive) for s in segments]
 
 
-def timed(fn, repeat: int = 3) -> tuple[float, object]:
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
-
-
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument(
@@ -153,7 +145,7 @@ def main() -> None:
     libs = {k: Library(dbs[k]) for k in sizes}
     for k in sizes:
         libs[k].match(path, machine=machine.name, eps=EPS)
-        warms[k] = timed(lambda lb=libs[k]: lb.match(path, machine=machine.name, eps=EPS), 5)
+        warms[k] = median_time(lambda lb=libs[k]: lb.match(path, machine=machine.name, eps=EPS), 5)
     cold, mt = first[1000], firsts[1000]
     warm, mt2 = warms[1000]
     lib = libs[1000]
@@ -198,7 +190,7 @@ def main() -> None:
 
     k_ex = 1000 if args.full_grid else 100
     bank_g = as_bank(libs[k_ex].bank(machine.name))
-    fast_g_t, (fast_g, _) = timed(lambda: segment_path(bank_g, pts, dt, EPS), 1)
+    fast_g_t, (fast_g, _) = median_time(lambda: segment_path(bank_g, pts, dt, EPS), 1)
     t0 = time.perf_counter()
     grid_segs, grid_info = segment_path(bank_g, pts, dt, EPS, search="grid")
     grid_t = time.perf_counter() - t0

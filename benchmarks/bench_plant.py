@@ -18,15 +18,15 @@ at n = 5,000 are asserted equal.
 
 from __future__ import annotations
 
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 from scipy import linalg, signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from _timing import median_time  # noqa: E402
 
 from primlib.ilc import check_learning, learn  # noqa: E402
 from primlib.ilc._learn import NORM_OPTIMAL_MAX_N  # noqa: E402
@@ -37,15 +37,6 @@ N = 20_000
 REPEAT_FAST = 50
 REPEAT_SLOW = 5
 GOAL_S = 1e-3
-
-
-def _median(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
 
 
 def _dlsim_all(machine, u):
@@ -79,9 +70,9 @@ def main() -> int:
     print(f"Machine.simulate, 3 axes x {N} samples (median)")
     print(f"{'machine':10s} {'simulate':>10s} {'lfilter':>10s} {'dlsim':>10s} {'dlsim/sim':>10s}")
     for m in (xyz, xyz_pid):
-        t_sim, y = _median(lambda m=m: m.simulate(u), REPEAT_FAST)
-        t_lf, y_lf = _median(lambda m=m: _lfilter_all(m, u), REPEAT_FAST)
-        t_dl, y_dl = _median(lambda m=m: _dlsim_all(m, u), REPEAT_SLOW)
+        t_sim, y = median_time(lambda m=m: m.simulate(u), REPEAT_FAST)
+        t_lf, y_lf = median_time(lambda m=m: _lfilter_all(m, u), REPEAT_FAST)
+        t_dl, y_dl = median_time(lambda m=m: _dlsim_all(m, u), REPEAT_SLOW)
         scale = np.max(np.abs(y_dl))
         # dlsim runs the expanded polynomial's realisation, whose rounding (see
         # primlib.plant._machine) bounds the agreement, not simulate's
@@ -98,9 +89,9 @@ def main() -> int:
     n_sv = 3000
     h = xyz.impulse_response(n_sv)[:, 0]
     dense = xyz.lifted(n_sv)[0]
-    t_dense, s_dense = _median(lambda: np.linalg.norm(dense, 2), 3)
+    t_dense, s_dense = median_time(lambda: np.linalg.norm(dense, 2), 3)
     op = toeplitz_operator(h)
-    t_fft, s_fft = _median(lambda: max_singular_value(op, method="lanczos"), 3)
+    t_fft, s_fft = median_time(lambda: max_singular_value(op, method="lanczos"), 3)
     np.testing.assert_allclose(s_fft, s_dense, rtol=1e-7)
     print(
         f"sigma_max of the {n_sv}x{n_sv} lifted matrix: Lanczos on FFT operator "
@@ -109,7 +100,7 @@ def main() -> int:
     )
     n_big = 20_000
     op_big = toeplitz_operator(xyz.impulse_response(n_big)[:, 0])
-    t_big, s_big = _median(lambda: max_singular_value(op_big, method="lanczos"), 3)
+    t_big, s_big = median_time(lambda: max_singular_value(op_big, method="lanczos"), 3)
     print(f"sigma_max at n = {n_big} (no dense baseline, 3.2 GB): {t_big * 1e3:.0f} ms")
     _bench_learn(xyz)
     _bench_long(xyz)
@@ -152,8 +143,8 @@ def _bench_learn(xyz):
     )
     print(f"learn, 3 axes x {n} samples, 10 iterations (median of 3), vs dense lifted loop")
     for law in ("pd", "norm-optimal"):
-        t_fast, res = _median(lambda law=law: learn(xyz, ref, law=law, iterations=10), 3)
-        t_slow, u_slow = _median(
+        t_fast, res = median_time(lambda law=law: learn(xyz, ref, law=law, iterations=10), 3)
+        t_slow, u_slow = median_time(
             lambda law=law, g=res.gains, k=res.iterations: _dense_learn(xyz, ref, law, g, k), 1
         )
         scale = np.max(np.abs(u_slow))
@@ -182,8 +173,8 @@ def _bench_long(xyz):
     n_long, n_dense, iters = 20_000, NORM_OPTIMAL_MAX_N, 5
     kw = dict(law="norm-optimal", iterations=iters, contour=False)
     ref = _long_reference(n_long)
-    t_chk, chk = _median(lambda: check_learning(xyz, n_long, "norm-optimal"), 3)
-    t_cg, res = _median(lambda: learn(xyz, ref, **kw), 3)
+    t_chk, chk = median_time(lambda: check_learning(xyz, n_long, "norm-optimal"), 3)
+    t_cg, res = median_time(lambda: learn(xyz, ref, **kw), 3)
     cg_steps = [max(i.iterations for i in upd) for upd in res.cg]
     print(
         f"norm-optimal ILC, 3 axes x {n_long} samples, {iters} iterations, CG path "
@@ -196,9 +187,11 @@ def _bench_long(xyz):
         print(f"    trial {j}: " + " ".join(f"{v:.3e}" for v in row) + f" | {tot:.3e}")
     # baseline: the dense Cholesky path at the largest n it allows, scaled by n^3
     ref_d = _long_reference(n_dense)
-    t_half, _ = _median(lambda: learn(xyz, _long_reference(n_dense // 2), solver="dense", **kw), 1)
-    t_dense, dense = _median(lambda: learn(xyz, ref_d, solver="dense", **kw), 1)
-    t_cg_d, cg_d = _median(lambda: learn(xyz, ref_d, solver="cg", **kw), 3)
+    t_half, _ = median_time(
+        lambda: learn(xyz, _long_reference(n_dense // 2), solver="dense", **kw), 1
+    )
+    t_dense, dense = median_time(lambda: learn(xyz, ref_d, solver="dense", **kw), 1)
+    t_cg_d, cg_d = median_time(lambda: learn(xyz, ref_d, solver="cg", **kw), 3)
     scale = np.max(np.abs(dense.u))
     np.testing.assert_allclose(cg_d.u, dense.u, rtol=0, atol=1e-6 * scale)
     np.testing.assert_allclose(cg_d.rms_total, dense.rms_total, rtol=1e-6)
