@@ -33,7 +33,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from primlib._errors import InputError
-from primlib.plant._pid import pid_polynomials
+from primlib.plant._pid import _pad, _polyadd, pid_polynomials
 
 __all__ = ["Machine", "register_kind", "machine_kinds"]
 
@@ -246,17 +246,6 @@ def _apply(section: tuple[np.ndarray, int], x: np.ndarray) -> np.ndarray:
     out = np.zeros_like(y)
     out[r:] = y[: len(y) - r]
     return out
-
-
-def _pad(p: np.ndarray, n: int) -> np.ndarray:
-    out = np.zeros(n)
-    out[: len(p)] = p
-    return out
-
-
-def _polyadd(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    n = max(len(p), len(q))
-    return _pad(p, n) + _pad(q, n)
 
 
 class Machine:

@@ -48,14 +48,14 @@ def pid_polynomials(kp: float, ki: float, kd: float, tf: float, dt: float):
     num = np.array([0.0])
     den = np.array([1.0])
     for n_i, d_i in terms:
-        num = _add(np.convolve(num, d_i), np.convolve(n_i, den))
+        num = _polyadd(np.convolve(num, d_i), np.convolve(n_i, den))
         den = np.convolve(den, d_i)
     num = _pad(num, len(den))
     scale = den[0]
     return num / scale, den / scale
 
 
-def _add(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+def _polyadd(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     # ascending powers of q^-1: align on the constant term
     n = max(len(p), len(q))
     return _pad(p, n) + _pad(q, n)
