@@ -39,7 +39,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from primlib._errors import InputError
-from primlib.plant._machine import Machine, register_kind
+from primlib.plant._machine import Machine, _check_keys, _read_note, _write_note, register_kind
 
 __all__ = ["LinearMotor", "MOTOR_KEYS"]
 
@@ -352,15 +352,7 @@ class LinearMotor(Machine):
             raise InputError(f"machine: expected a JSON object, got {type(d).__name__}")
         if d.get("kind", cls.kind) != cls.kind:
             raise InputError(f"machine kind: expected {cls.kind!r}, got {d.get('kind')!r}")
-        unknown = sorted(set(d) - _TOP_KEYS)
-        if unknown:
-            raise InputError(
-                f"machine: got unknown key {unknown[0]!r} (expected keys among "
-                f"{', '.join(sorted(_TOP_KEYS))})"
-            )
-        for key in ("name", "dt", "axes", "motors"):
-            if key not in d:
-                raise InputError(f"machine: expected key {key!r}, got none")
+        _check_keys(d, _TOP_KEYS, ("name", "dt", "axes", "motors"))
         m = cls(
             d["name"],
             d["dt"],
@@ -370,12 +362,7 @@ class LinearMotor(Machine):
             length_unit=d.get("length_unit", 1e-3),
             substeps=d.get("substeps", 4),
         )
-        note = d.get("note")
-        if note is not None:
-            if not isinstance(note, str):
-                raise InputError(f"note: expected a string, got {note!r}")
-            m._note = note
-        return m
+        return _read_note(m, d)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary; ``LinearMotor.from_dict(m.to_dict()) == m``."""
@@ -389,10 +376,7 @@ class LinearMotor(Machine):
             "motors": self.motors,
             "feedback": self.feedback,
         }
-        note = getattr(self, "_note", None)
-        if note is not None:
-            out["note"] = note
-        return out
+        return _write_note(self, out)
 
     def __repr__(self) -> str:
         fb = "PID" if self.feedback else "open loop"

@@ -248,6 +248,37 @@ def _apply(section: tuple[np.ndarray, int], x: np.ndarray) -> np.ndarray:
     return out
 
 
+def _check_keys(d: Mapping[str, Any], allowed: set[str], required: tuple[str, ...]) -> None:
+    """A machine dictionary has only ``allowed`` keys and every ``required`` one."""
+    unknown = sorted(set(d) - allowed)
+    if unknown:
+        raise InputError(
+            f"machine: got unknown key {unknown[0]!r} (expected keys among "
+            f"{', '.join(sorted(allowed))})"
+        )
+    for key in required:
+        if key not in d:
+            raise InputError(f"machine: expected key {key!r}, got none")
+
+
+def _read_note(machine: Machine, d: Mapping[str, Any]) -> Machine:
+    """Attach the dictionary's optional free-text ``note`` to a machine built from it."""
+    note = d.get("note")
+    if note is not None:
+        if not isinstance(note, str):
+            raise InputError(f"note: expected a string, got {note!r}")
+        machine._note = note
+    return machine
+
+
+def _write_note(machine: Machine, out: dict[str, Any]) -> dict[str, Any]:
+    """Add the machine's note, if it has one, to its JSON-ready dictionary."""
+    note = getattr(machine, "_note", None)
+    if note is not None:
+        out["note"] = note
+    return out
+
+
 class Machine:
     """A set of axes with continuous LTI models, sampled with zero-order hold.
 
@@ -556,25 +587,12 @@ class Machine:
             )
         if cls is Machine and target is not Machine:
             return target.from_dict(d)
-        unknown = sorted(set(d) - _TOP_KEYS)
-        if unknown:
-            raise InputError(
-                f"machine: got unknown key {unknown[0]!r} (expected keys among "
-                f"{', '.join(sorted(_TOP_KEYS))})"
-            )
-        for key in ("name", "dt", "axes", "plants"):
-            if key not in d:
-                raise InputError(f"machine: expected key {key!r}, got none")
+        _check_keys(d, _TOP_KEYS, ("name", "dt", "axes", "plants"))
         axes = d["axes"]
         if not isinstance(axes, (list, tuple)):
             raise InputError(f"axes: expected a list of axis names, got {axes!r}")
         machine = cls(d["name"], d["dt"], axes, d["plants"], d.get("feedback"))
-        note = d.get("note")
-        if note is not None:
-            if not isinstance(note, str):
-                raise InputError(f"note: expected a string, got {note!r}")
-            machine._note = note
-        return machine
+        return _read_note(machine, d)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary; ``Machine.from_dict(m.to_dict()) == m``."""
@@ -588,10 +606,7 @@ class Machine:
             },
             "feedback": self.feedback,
         }
-        note = getattr(self, "_note", None)
-        if note is not None:
-            out["note"] = note
-        return out
+        return _write_note(self, out)
 
     @classmethod
     def from_json(cls, path) -> Machine:
