@@ -34,6 +34,18 @@ def _line(T):
     return np.stack([12 * s, 0 * s, -2 * s], 1)
 
 
+def _machine_and_path(tmp_path, machine_json, stem, pts):
+    """A fresh library holding one machine, and a path CSV of ``pts`` on its dt grid."""
+    runner = CliRunner()
+    db = tmp_path / f"{stem}.duckdb"
+    assert (
+        runner.invoke(main, ["--db", str(db), "machine", "add", str(machine_json)]).exit_code == 0
+    )
+    f = tmp_path / f"{stem}.csv"
+    write_path_csv(f, np.arange(pts.shape[0]) * DT, pts)
+    return runner, db, f
+
+
 @pytest.fixture()
 def setup(tmp_path):
     """A library file with two primitives, and a new path: the arc at 0.8x speed, then the
@@ -238,12 +250,7 @@ def test_example_without_data_exits_2(tmp_path):
 
 
 def test_learn_without_primitives_starts_cold(tmp_path):
-    runner = CliRunner()
-    db = tmp_path / "empty.duckdb"
-    assert runner.invoke(main, ["--db", str(db), "machine", "add", str(XYZ)]).exit_code == 0
-    f = tmp_path / "arc.csv"
-    pts = _arc(1.0)
-    write_path_csv(f, np.arange(pts.shape[0]) * DT, pts)
+    runner, db, f = _machine_and_path(tmp_path, XYZ, "arc", _arc(1.0))
     res = runner.invoke(
         main, ["--db", str(db), "learn", str(f), "--machine", "xyz", "-n", "2", "--json"]
     )
@@ -258,12 +265,7 @@ XY = ROOT / "data" / "machines" / "xy-pdccilc.json"
 
 @pytest.mark.parametrize("law", ["pdccilc", "tdilc"])
 def test_learn_master_slave_law_on_the_two_axis_stage(tmp_path, law):
-    runner = CliRunner()
-    db = tmp_path / "xy.duckdb"
-    assert runner.invoke(main, ["--db", str(db), "machine", "add", str(XY)]).exit_code == 0
-    f = tmp_path / "arc2.csv"
-    pts = _arc(2.0)[:, :2]
-    write_path_csv(f, np.arange(pts.shape[0]) * DT, pts)
+    runner, db, f = _machine_and_path(tmp_path, XY, "arc2", _arc(2.0)[:, :2])
     args = ["--db", str(db), "learn", str(f), "--machine", "xy-pdccilc", "--cold"]
     res = runner.invoke(main, [*args, "--law", law, "-n", "3", "--json"])
     assert res.exit_code == 0, res.output
@@ -291,12 +293,7 @@ def test_learn_master_slave_law_on_three_axes_exits_2(setup):
 
 def test_learn_long_path_checks_convergence_without_a_dense_svd(tmp_path):
     # 25 s at 5 ms: n = 5001; the lifted check is iterative (no 5000 x 5000 SVD, no ARPACK)
-    runner = CliRunner()
-    db = tmp_path / "long.duckdb"
-    assert runner.invoke(main, ["--db", str(db), "machine", "add", str(XYZ)]).exit_code == 0
-    f = tmp_path / "long.csv"
-    pts = _arc(25.0)
-    write_path_csv(f, np.arange(pts.shape[0]) * DT, pts)
+    runner, db, f = _machine_and_path(tmp_path, XYZ, "long", _arc(25.0))
     res = runner.invoke(
         main, ["--db", str(db), "learn", str(f), "--machine", "xyz", "--cold", "-n", "2", "--json"]
     )
