@@ -1,0 +1,26 @@
+"""The defaults every stage shares, in one place.
+
+Each is a plain module constant; a function that takes the matching argument documents
+``None`` as "use the default from :mod:`primlib.defaults`".
+"""
+
+from __future__ import annotations
+
+__all__ = ["EPS_FRACTION", "TIME_SCALE", "BAND_SAMPLES", "FIT_RTOL", "ILC_BAND"]
+
+# Match tolerance relative to the path's extent. One number for `primlib match`, the warm
+# start and `primlib learn`: the warm start's first-trial error follows the pieces' shape
+# error, so a tight match pays (3e-4 of a 70 mm path is 0.02 mm).
+EPS_FRACTION = 3e-4
+
+# Range of time scales (primitive interval duration / segment duration) the matcher allows.
+TIME_SCALE: tuple[float, float] = (0.25, 4.0)
+
+# Width of a splice's transition band, in samples of the machine's dt.
+BAND_SAMPLES = 8
+
+# NURBS fit tolerance relative to the path's size.
+FIT_RTOL = 1e-4
+
+# ILC learning band without a Q-filter, as a fraction of the Nyquist frequency.
+ILC_BAND = 0.1
