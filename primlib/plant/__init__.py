@@ -10,6 +10,7 @@ from primlib.plant._invert import invert
 from primlib.plant._lifted import max_singular_value, toeplitz_operator
 from primlib.plant._linear_motor import LinearMotor
 from primlib.plant._machine import Machine, machine_kinds, register_kind
+from primlib.plant._pid import pid_polynomials
 
 __all__ = [
     "Machine",
@@ -19,4 +20,5 @@ __all__ = [
     "toeplitz_operator",
     "max_singular_value",
     "LinearMotor",
+    "pid_polynomials",
 ]
