@@ -75,6 +75,7 @@ _COMMAND_MODULES: list[str] = [
     "_reproduce_pdccilc",
     "_reproduce_cee",
     "_match",
+    "_machine_identify",
 ]
 
 
