@@ -165,9 +165,10 @@ def learn_master_slave(
 
     Examples
     --------
-    >>> m = Machine.from_json("data/machines/xy-pdccilc.json")      # doctest: +SKIP
-    >>> res = learn_master_slave(m, points, law="pdccilc", iterations=30)  # doctest: +SKIP
-    >>> res.rms_contour[-1] / res.rms_contour[0]                       # doctest: +SKIP
+    >>> m2 = Machine.from_json("data/machines/xy-pdccilc.json")
+    >>> res = learn_master_slave(m2, points, law="pdccilc", iterations=10)
+    >>> bool(res.rms_contour[-1] < 0.5 * res.rms_contour[0])   # the coupling learns the contour
+    True
     """
     if getattr(plant, "dim", None) != 2:
         raise InputError(

@@ -87,7 +87,9 @@ def read_uniform_table(
 
     Examples
     --------
-    >>> t, xy = read_uniform_table("path.csv", [("t", "x", "y")], "path")  # doctest: +SKIP
+    >>> t, xyz = read_uniform_table("data/paths/zigzag.csv", [("t", "x", "y", "z")], "path")
+    >>> xyz.shape[1], float(t[0])
+    (3, 0.0)
     """
     path = Path(path)
     try:

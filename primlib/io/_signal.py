@@ -50,7 +50,9 @@ def read_signal_csv(
 
     Examples
     --------
-    >>> t, u = read_signal_csv("glyph.signal.csv")  # doctest: +SKIP
+    >>> t, u = read_signal_csv("data/library/circle.signal.csv")
+    >>> u.shape == (len(t), 3)
+    True
     """
     ts, u = read_uniform_table(path, SIGNAL_HEADERS, "signal")
     if t is not None:

@@ -443,6 +443,11 @@ def time_scale(
     Examples
     --------
     >>> u2 = time_scale(m, u, 2.0)          # twice as fast, half as long
+    >>> len(u2) == (len(u) - 1) // 2 + 1
+    True
+    >>> y, y2 = m.simulate(u), m.simulate(u2)
+    >>> bool(np.allclose(y2, y[::2], atol=1e-9 * np.abs(y).max()))   # the same path, twice as fast
+    True
     """
     return transform(machine, u, k=k, offset=offset, n=n, reference=reference)
 

@@ -187,11 +187,17 @@ class Library:
 
     Examples
     --------
+    >>> import tempfile, os
     >>> import primlib as pl
-    >>> with pl.Library("lib.duckdb") as lib:  # doctest: +SKIP
-    ...     lib.add_machine(pl.Machine.from_json("data/machines/xyz.json"))
-    ...     pid = lib.add(path, u, machine="xyz", name="glyph-a")
-    ...     bank = lib.bank("xyz")
+    >>> folder = tempfile.mkdtemp()
+    >>> p = pl.Trajectory.from_csv("data/library/circle.csv")
+    >>> t, u = pl.io.read_signal_csv("data/library/circle.signal.csv")
+    >>> with pl.Library(os.path.join(folder, "lib.duckdb")) as lib:
+    ...     _ = lib.add_machine(pl.Machine.from_json("data/machines/xyz.json"))
+    ...     pid = lib.add(p, u, machine="xyz", name="circle")
+    >>> with pl.Library(os.path.join(folder, "lib.duckdb"), read_only=True) as lib:
+    ...     [r.name for r in lib.primitives(machine="xyz")]
+    ['circle']
     """
 
     def __init__(
