@@ -3,7 +3,6 @@ sample run, the structured solver, the long-trial check, ILCResult.plot."""
 
 from __future__ import annotations
 
-import time
 import warnings
 from pathlib import Path
 
@@ -78,16 +77,14 @@ def test_auto_uses_cg_above_a_thousand_samples():
     assert small.solver == "dense Cholesky"
 
 
-def test_twenty_thousand_samples_run_in_seconds_and_converge():
+@pytest.mark.slow
+def test_twenty_thousand_samples_converge_without_dense_matrices():
+    # The time it takes is a benchmark figure (benchmarks/bench_plant.py), not a test: this
+    # checks the long-trial route (no n x n matrix, Lanczos check, a few CG steps) works.
     n = 20_000  # 100 s at 5 ms
     ref = _path(XYZ, n)
     ref -= ref[0]
-    t0 = time.perf_counter()
     res = learn(XYZ, ref, law="norm-optimal", iterations=5, contour=False)
-    elapsed = time.perf_counter() - t0
-    # ~2 s alone (check ~1.2 s, 5 trials of simulate + 3 CG solves); generous for a
-    # shared machine. The dense route would need 3 x 3.2 GB and ~10 min of Cholesky.
-    assert elapsed < 30.0, elapsed
     assert res.check.monotonic and res.check.n == n
     assert "estimate" not in res.check.method and "Lanczos" in res.check.method
     assert res.stopped == "iterations"
