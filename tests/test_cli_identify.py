@@ -71,8 +71,13 @@ def test_identify_inside_a_pid_loop_at_another_dt(tmp_path):
     write_path_csv(tmp_path / "y.csv", t, START[:2] + true.simulate(u))
     res = run("machine", "identify", "--input", tmp_path / "u.csv", "--output",
               tmp_path / "y.csv", "--name", "xy", "--out", tmp_path / "xy.json",
-              "--structure", "second-order", "--pid", "3,1,0", "--dt", 0.01)  # fmt: skip
+              "--structure", "second-order", "--pid", "3,1,0", "--dt", 0.01,
+              "--json")  # fmt: skip
     assert res.exit_code == 0, res.output
+    report = json.loads(res.output)
+    assert report["dt"] == 0.01 and report["record_dt"] == 0.005 and report["held_out"] == 480
+    assert report["axes"]["y"]["structure"] == "second-order"
+    assert report["axes"]["y"]["nrmse"] < 1e-6 and report["out"] == str(tmp_path / "xy.json")
     m = Machine.from_json(tmp_path / "xy.json")
     assert m.dt == 0.01 and m.feedback["y"] == {"kp": 3.0, "ki": 1.0, "kd": 0.0, "tf": 0.0}
     np.testing.assert_allclose(m.plants["y"][1], [1.0, 2.76, 2.127], rtol=1e-6)

@@ -9,6 +9,7 @@ computing; the machine JSON is written atomically at the end.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import click
@@ -164,6 +165,7 @@ def _summary(res, out: Path, plot_file: Path | None) -> str:
     default=None,
     help="Fraction of the record (its end) held out of the fit [default: 0.3].",
 )
+@click.option("--json", "as_json", is_flag=True, help="Print the fit quality as one JSON object.")
 @click.option(
     "--plot",
     "plot_file",
@@ -181,6 +183,7 @@ def machine_identify(
     pid: tuple[str, ...],
     reference_file: Path | None,
     holdout: float | None,
+    as_json: bool,
     plot_file: Path | None,
 ) -> None:
     """Identify a machine from one experiment: per-axis continuous models fitted by
@@ -222,7 +225,13 @@ def machine_identify(
 
         save_identified(res, plot_file)
     write_machine(out_file, res.machine)
-    click.echo(_summary(res, out_file, plot_file))
+    if as_json:
+        report = {**res.to_dict(), "out": str(out_file)}
+        if plot_file is not None:
+            report["plot"] = str(plot_file)
+        click.echo(json.dumps(report, indent=2))
+    else:
+        click.echo(_summary(res, out_file, plot_file))
 
 
 @machine.command("excite")

@@ -86,6 +86,33 @@ class Identified:
         """The model's output over the whole record, shape (n, d)."""
         return np.stack([f.y_model for f in self.fits], axis=1)
 
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready fit quality: the machine's name and dt, the record's dt and sample
+        counts, and per axis the structure, held-out and estimation NRMSE, the coefficients
+        with their standard uncertainty, the offset, and every structure's held-out NRMSE."""
+        axes = {}
+        for a, f, c in zip(self.machine.axes, self.fits, self.candidates, strict=True):
+            axes[a] = {
+                "structure": f.structure,
+                "nrmse": f.nrmse,
+                "nrmse_fit": f.nrmse_fit,
+                "num": f.num.tolist(),
+                "num_std": f.num_std.tolist(),
+                "den": f.den.tolist(),
+                "den_std": f.den_std.tolist(),
+                "offset": f.offset,
+                "offset_std": f.offset_std,
+                "candidates": dict(c),
+            }
+        return {
+            "machine": self.machine.name,
+            "dt": self.machine.dt,
+            "record_dt": self.dt,
+            "samples": len(self.y),
+            "held_out": len(self.y) - self.n_est,
+            "axes": axes,
+        }
+
     def plot(self, ax=None):
         """Measured vs model output per axis, the held-out part marked; see
         :func:`primlib.plot.plot_identified`.
