@@ -167,6 +167,11 @@ def excite(
         # a switch of 2 amplitude within the rate limit takes this many samples
         ramp = 1 if max_rate is None else math.ceil(2 * amplitude / (max_rate * dt))
         u = amplitude * _prbs(n, dt, axes, hi, ramp, np.random.default_rng(seed))
+    return u * _limit_scale(u, dt, max_rate, max_velocity, machine)
+
+
+def _limit_scale(u, dt, max_rate, max_velocity, machine) -> float:
+    """The largest scale <= 1 of u within the rate and predicted-velocity limits."""
     scale = 1.0
     if max_rate is not None:
         rate = np.max(np.abs(np.diff(u, axis=0, prepend=0.0))) / dt
@@ -175,7 +180,7 @@ def excite(
         y = machine.simulate(u)
         vel = np.max(np.abs(np.diff(y, axis=0, prepend=0.0))) / dt
         scale = min(scale, max_velocity / vel) if vel > 0 else scale
-    return u * scale
+    return scale
 
 
 def _check_options(duration, amplitude, axes, dt, kind, band, periods):

@@ -237,15 +237,15 @@ def identify(
 ) -> Identified:
     r"""Identify a machine (one continuous LTI model per axis) from one experiment.
 
-    Each axis's coefficients theta minimise the output error on the first
-    ``1 - holdout`` of the record,
+    Per axis, the coefficients theta and an output offset c (the first sample's error)
+    minimise the output error on the first ``1 - holdout`` of the record,
 
-    .. math:: V(\theta) = \sum_{k < n_e} (y_k - \hat y_k(\theta))^2,
+    .. math:: V(\theta, c) = \sum_{k < n_e} (y_k - \hat y_k(\theta) - c)^2,
 
-    :math:`\hat y(\theta)` the ZOH simulation of the candidate (in the PID loop when
-    ``pid`` is given) by :class:`primlib.plant.Machine` itself, from rest; solved by
-    ``scipy.optimize.least_squares`` (trust-region reflective, poles kept in the closed
-    left half plane) from an equation-error (ARX) start.
+    :math:`\hat y(\theta)` the candidate's ZOH simulation from rest by
+    :class:`primlib.plant.Machine` (in the PID loop when ``pid`` is given); solved by
+    ``scipy.optimize.least_squares`` (trust-region reflective, poles in the closed left
+    half plane) from an equation-error (ARX) start.
 
     Parameters
     ----------
@@ -256,15 +256,13 @@ def identify(
     dt : float
         Sample time of the record, s.
     structure : {"auto", "integrator", "first-order", "second-order"}
-        Model structure (:data:`primlib.identify.STRUCTURES`); "auto" picks, per axis,
-        the simplest within a margin of the best held-out error.
+        See :data:`STRUCTURES`; "auto": per axis the simplest within a margin of the best
+        held-out error.
     pid : dict, optional
-        The PID the record ran in: ``{"kp", "ki", "kd", "tf"}`` for every axis, or a
-        mapping axis -> gains (missing axes ran open loop). The plant inside is identified
-        and the machine gets this feedback.
+        The PID the record ran in, ``{"kp", "ki", "kd", "tf"}`` for every axis or a mapping
+        axis -> gains; the plant inside is identified, the machine gets this feedback.
     reference : array, shape (n, d), optional
-        The PID loops' reference relative to the start (None: zero, the loop holds the
-        start and ``u`` excites).
+        The PID loops' reference relative to the start (None: zero).
     holdout : float
         Fraction of the record (its end) held out of the fit, in (0, 1).
     axes : sequence of str, optional
@@ -272,8 +270,7 @@ def identify(
     name : str
         The machine's name.
     machine_dt : float, optional
-        The machine's sample time (default ``dt``); the model is continuous, so a record
-        taken at a faster rate serves a slower controller.
+        The machine's sample time (default ``dt``; the model is continuous).
 
     Returns
     -------
@@ -282,12 +279,11 @@ def identify(
     Raises
     ------
     InputError
-        Shapes that differ, NaN or inf, too short a record, an input column that is zero
-        throughout, an output that does not move in the held-out part, a bad option.
+        Shapes that differ, NaN or inf, a short record, an input that is zero throughout,
+        an output that does not move in the held-out part, a bad option.
 
     Examples
     --------
-    >>> import numpy as np
     >>> from primlib.identify import excite
     >>> from primlib.plant import Machine
     >>> true = Machine("m", 0.01, ("x",), {"x": ([2.0], [0.5, 1.0, 0.0])})
@@ -299,6 +295,14 @@ def identify(
     u, y, ref, dt, n_est, axes, pids = _check_inputs(u, y, dt, pid, reference, holdout, axes)
     machine_dt = dt if machine_dt is None else _check_number(machine_dt, "machine_dt", 0.0)
     names = list(STRUCTURES) if structure == "auto" else [_structure_name(structure)]
+    fits, candidates = _fit_axes(u, y, ref, dt, n_est, axes, pids, names)
+    note = _note(fits, axes, dt, len(u), n_est)
+    machine = _machine(name, machine_dt, axes, fits, pids, note)
+    return Identified(machine, tuple(fits), tuple(candidates), u, y, dt, n_est)
+
+
+def _fit_axes(u, y, ref, dt, n_est, axes, pids, names) -> tuple[list, list]:
+    """Per axis, the kept fit and every tried structure's held-out error."""
     fits, candidates = [], []
     for i, a in enumerate(axes):
         rec = AxisRecord(
@@ -309,20 +313,18 @@ def identify(
         tried = {s: fit_axis(STRUCTURES[s], rec) for s in names}
         fits.append(_choose(tried))
         candidates.append({s: f.nrmse for s, f in tried.items()})
-    machine = Machine.from_dict(
-        {
-            "name": name,
-            "dt": machine_dt,
-            "axes": list(axes),
-            "plants": {
-                a: {"num": f.num.tolist(), "den": f.den.tolist()}
-                for a, f in zip(axes, fits, strict=True)
-            },
-            "feedback": pids,
-            "note": _note(fits, axes, dt, len(u), n_est),
-        }
-    )
-    return Identified(machine, tuple(fits), tuple(candidates), u, y, dt, n_est)
+    return fits, candidates
+
+
+def _machine(name, dt, axes, fits, pids, note) -> Machine:
+    """The identified machine, built through its JSON dictionary (the note is a key there)."""
+    plants = {
+        a: {"num": f.num.tolist(), "den": f.den.tolist()} for a, f in zip(axes, fits, strict=True)
+    }
+    return Machine.from_dict(
+        {"name": name, "dt": dt, "axes": list(axes), "plants": plants, "feedback": pids,
+         "note": note}
+    )  # fmt: skip
 
 
 def _check_inputs(u, y, dt, pid, reference, holdout, axes):
