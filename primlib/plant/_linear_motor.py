@@ -125,7 +125,7 @@ class LinearMotor(Machine):
     --------
     >>> lm = LinearMotor.from_json("data/machines/linear-motor.json")
     >>> y = lm.simulate(np.zeros((100, 2)))
-    >>> bool(np.all(y == 0.0))       # no input: friction holds it at rest (the disturbance D < static level)
+    >>> bool(np.all(y == 0.0))  # no input: friction holds it (disturbance D < static level)
     True
     """
 
