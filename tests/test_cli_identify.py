@@ -152,3 +152,11 @@ def test_excite_prbs_within_the_rate_and_velocity_limits(tmp_path):
               "--max-velocity", 10, "--out", tmp_path / "w.csv")  # fmt: skip
     assert res.exit_code == 2 and "--max-velocity: expected --machine" in res.output
     assert not (tmp_path / "w.csv").exists()
+
+
+def test_a_reference_needs_a_pid(tmp_path):
+    u, y = _bad_files(tmp_path, "ok")
+    res = run("machine", "identify", "--input", u, "--output", y, "--name", "m",
+              "--out", tmp_path / "m.json", "--reference", y)  # fmt: skip
+    assert res.exit_code == 2 and "--reference: expected --pid" in res.output
+    assert not (tmp_path / "m.json").exists()

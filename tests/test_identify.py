@@ -182,3 +182,24 @@ def test_bad_excitation_options(kwargs, match):
         excite(
             args.pop("duration"), args.pop("amplitude"), args.pop("axes"), args.pop("dt"), **args
         )
+
+
+def test_a_closed_loop_record_with_a_moving_reference():
+    # the reference excites the loop as well as the feedforward; both enter the model
+    num, den = [-0.0631, 2.132], [1.0, 2.76, 2.127]
+    pid = {"kp": 3.0, "ki": 1.0, "kd": 0.0}
+    u = excite(6.0, 1.0, 1, DT)
+    r = 0.5 * excite(6.0, 1.0, 1, DT, periods=2)
+    true = Machine("true", DT, ("x",), {"x": (num, den)}, {"x": pid})
+    y = true.simulate(u, reference=r)
+    res = identify(u, y, DT, structure="second-order", pid=pid, reference=r, axes=("x",))
+    np.testing.assert_allclose(res.machine.plants["x"][1], den, rtol=1e-6)
+    with pytest.raises(InputError, match=r"reference: expected the shape of u \(1200, 1\)"):
+        identify(u, y, DT, pid=pid, reference=r[:-1], axes=("x",))
+
+
+def test_an_output_that_stops_before_the_held_out_part_is_refused():
+    u, y = record(*PLANTS["integrator"], n=400)
+    y[250:] = y[250]
+    with pytest.raises(InputError, match="y: axis 'x' does not move in the held-out part"):
+        identify(u, y, DT, axes=("x",))
