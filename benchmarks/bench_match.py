@@ -43,8 +43,8 @@ from primlib.match._bank import as_bank  # noqa: E402
 from primlib.match._kabsch import kabsch  # noqa: E402
 from primlib.match._search import PathPiece  # noqa: E402
 from primlib.nurbs import Trajectory  # noqa: E402
+from primlib.pipeline import Library  # noqa: E402
 from primlib.plant import Machine  # noqa: E402
-from primlib.store import Library  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 N_SAMPLES = 2000

@@ -5,7 +5,7 @@
 Figures (goals from issue 2), each beside a baseline measured in the same run:
 
 * ingest k = 1,000 primitives (3 axes, n = 2,400 samples) into a FILE library through
-  ``Library.add_many`` in one batch (checks, ``sample_many`` of the paths on the machine
+  ``Store.add_many`` in one batch (checks, ``sample_many`` of the paths on the machine
   grid, one Arrow list per big column, one INSERT, commit -- which for a batch this big
   includes DuckDB's checkpoint into the file): goal <= 1 s. The close that follows is a line
   of its own, and the sum too. Baselines, same run: the previous data path (each path's
@@ -14,11 +14,11 @@ Figures (goals from issue 2), each beside a baseline measured in the same run:
   same rows (parameters prepared as Python lists beforehand) on a subset, scaled to k.
   The sampling alone: ``sample_many`` against a ``Trajectory.sample`` loop, and their
   largest difference (must be <= 1e-12 of the largest coordinate).
-* loading the bank back (``Library.bank``: one columnar query to Arrow to flat numpy) from a
+* loading the bank back (``Store.bank``: one columnar query to Arrow to flat numpy) from a
   freshly opened file: goal <= 0.2 s. The bank holds the points matching reads; its signals
   come with a second query on first use, timed as well. Baseline: a row loop, one indexed
   query per primitive.
-* one signal by id (``Library.signal``, a unique-index lookup), median: goal <= 2 ms.
+* one signal by id (``Store.signal``, a unique-index lookup), median: goal <= 2 ms.
   Baseline: the same query on a copy of the table without the index.
 
 The trajectories are built with ``Trajectory.from_definition`` from a few distinct curves,
@@ -47,7 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 from primlib.nurbs import Trajectory, sample_many  # noqa: E402
 from primlib.plant import Machine  # noqa: E402
-from primlib.store import Library  # noqa: E402
+from primlib.store import Store  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 MACHINE = ROOT / "data" / "machines" / "xyz.json"
@@ -85,7 +85,7 @@ def make_items(k: int, n: int, dt: float, distinct: int = 5, seed: int = 0):
 
 def fresh_library(folder: Path, name: str, machine: Machine) -> Path:
     db = folder / name
-    with Library(db) as lib:
+    with Store(db) as lib:
         lib.add_machine(machine)
     return db
 
@@ -177,7 +177,7 @@ def bench_ingest(folder: Path, k: int, n: int, machine: Machine, repeat: int):
 
         items = make_items(k, n, machine.dt)
         db = fresh_library(folder, f"ingest{r}.duckdb", machine)
-        lib = Library(db)
+        lib = Store(db)
         t0 = tic()
         ids = lib.add_many(items, machine.name)
         times.append(toc(t0))
@@ -241,7 +241,7 @@ def bench_bank(db: Path, machine: str, repeat: int):
     """Bank points (what matching reads) and then its signals, each from a fresh open."""
     points_t, signals_t = [], []
     for _ in range(repeat):
-        with Library(db, read_only=True) as lib:  # fresh open: DuckDB's cache is cold
+        with Store(db, read_only=True) as lib:  # fresh open: DuckDB's cache is cold
             t0 = tic()
             bank = lib.bank(machine)
             points_t.append(toc(t0))
@@ -249,7 +249,7 @@ def bench_bank(db: Path, machine: str, repeat: int):
             signals = bank.signals
             signals_t.append(toc(t0))
     # Baseline: a row loop, one indexed query per primitive and column.
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         con = lib._con
         t0 = tic()
         points_loop = [_row(con, "points", int(i)) for i in bank.ids]
@@ -273,7 +273,7 @@ def bench_signal(db: Path, folder: Path, ids: np.ndarray, lookups: int):
     rng = np.random.default_rng(1)
     pick = rng.choice(ids, lookups)
     times = []
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         lib.signal(int(pick[0]))  # warm the connection
         for i in pick:
             t0 = tic()
@@ -326,9 +326,9 @@ def main() -> None:
         # same rows, same table: what the fast path stored equals what the baselines stored
         scale = np.abs(items[0][0].ctrlpts).max()
         with (
-            Library(db, read_only=True) as fast,
-            Library(base_db, read_only=True) as slow,
-            Library(old_db, read_only=True) as old,
+            Store(db, read_only=True) as fast,
+            Store(base_db, read_only=True) as slow,
+            Store(old_db, read_only=True) as old,
         ):
             for i in range(1, args.subset + 1, max(1, args.subset // 8)):
                 np.testing.assert_array_equal(fast.signal(i), slow.signal(i))

@@ -59,9 +59,9 @@ from primlib.contour import contour_error  # noqa: E402
 from primlib.ilc import ConvergenceWarning, learn  # noqa: E402
 from primlib.match import Match, Segment  # noqa: E402
 from primlib.nurbs import Trajectory  # noqa: E402
+from primlib.pipeline import Library  # noqa: E402
 from primlib.plant import Machine, invert  # noqa: E402
-from primlib.splice import continuous_output, model_inverse, time_scale, warm_start  # noqa: E402
-from primlib.store import Library  # noqa: E402
+from primlib.splice import continuous_output, model_inverse, time_scale  # noqa: E402
 
 GAIN, TAU, LAG = 1.08, 1.15, 0.012
 
@@ -225,13 +225,13 @@ def main(argv=None) -> int:
         ref = traj.sample(dt)
         ref = ref - ref[0]
         s0 = time.perf_counter()
-        ws = warm_start(lib, traj, "xyz", args.eps)
+        ws = lib.warm_start(traj, "xyz", args.eps)
         t_warm.append(time.perf_counter() - s0)
         n_seg.append(len(ws.match.segments))
-        ws_n = warm_start(lib, traj, "xyz", args.eps, match=ws.match, refine=False)
+        ws_n = lib.warm_start(traj, "xyz", args.eps, match=ws.match, refine=False)
         t_grid = np.arange(ref.shape[0]) * dt
         for c, r in ablation:
-            wa = warm_start(lib, traj, "xyz", args.eps, match=ws.match, refine=r, correction=c)
+            wa = lib.warm_start(traj, "xyz", args.eps, match=ws.match, refine=r, correction=c)
             y1 = true.simulate(wa.u)
             e1 = np.sqrt(np.sum(np.mean((ref - y1) ** 2, axis=0)))
             c1 = np.sqrt(np.mean(contour_error(ref, t_grid, y1) ** 2))
@@ -243,7 +243,7 @@ def main(argv=None) -> int:
                 np.sqrt(np.mean(contour_error(ref, t_grid, y1) ** 2)),
             )
         )
-        ws_o = warm_start(lib, traj, "xyz", args.eps, match=oracle_match(pieces, traj, ids))
+        ws_o = lib.warm_start(traj, "xyz", args.eps, match=oracle_match(pieces, traj, ids))
         refined = ws.model.machine if ws.model is not None else nominal
         starts = {
             "warm": ws.u,

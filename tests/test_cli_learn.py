@@ -13,7 +13,7 @@ from primlib.cli import main
 from primlib.io import write_path_csv, write_signal_csv
 from primlib.nurbs import Trajectory
 from primlib.plant import Machine, invert
-from primlib.store import Library
+from primlib.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
 XYZ = ROOT / "data" / "machines" / "xyz.json"
@@ -116,7 +116,7 @@ def test_learn_warm_beats_cold_and_ingests(setup, tmp_path):
     # first trial is orders of magnitude better than starting from zero
     assert w["iterations"][0]["rms"] < c["iterations"][0]["rms"] / 100
     assert w["iterations"][0]["contour_rms"] is not None
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         assert len(lib.primitives("xyz")) == 2  # nothing stored without --ingest
 
     res = runner.invoke(
@@ -139,7 +139,7 @@ def test_learn_warm_beats_cold_and_ingests(setup, tmp_path):
     )
     assert res.exit_code == 0, res.output
     assert "iteration" in res.output and "stored primitive" in res.output
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         infos = lib.primitives("xyz")
         assert [i.name for i in infos][-1] == "arc-then-line"
         prim = lib.get(infos[-1].id)
@@ -221,7 +221,7 @@ def test_example_builds_the_library_and_learns(tmp_path):
     assert res.exit_code == 0, res.output
     assert "warm start from" in res.output
     assert fig.read_bytes()[:4] == b"\x89PNG"
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         stems = sorted(
             p.stem
             for p in (ROOT / "data" / "library").glob("*.csv")
@@ -237,7 +237,7 @@ def test_example_builds_the_library_and_learns(tmp_path):
     # a second run of the same command reuses the library (no duplicates)
     res = runner.invoke(main, example)
     assert res.exit_code == 0, res.output
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         assert len(lib.primitives("xyz")) == len(stems)
 
 

@@ -1,4 +1,4 @@
-"""CLI library commands through CliRunner, read back through Library; bad input exits 2."""
+"""CLI library commands through CliRunner, read back through the Store; bad input exits 2."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from click.testing import CliRunner
 
 from primlib.cli import main
 from primlib.io import read_path_csv, read_signal_csv, write_path_csv, write_signal_csv
-from primlib.store import Library
+from primlib.store import Store
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "machines"
 DT = 0.005
@@ -65,7 +65,7 @@ def db(tmp_path, template) -> Path:
 
 
 def count(db: Path) -> int:
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         return len(lib.primitives())
 
 
@@ -78,7 +78,7 @@ def test_machine_add_creates_the_library_and_is_idempotent(tmp_path):
     res = run(db, "machine", "add", DATA / "xyz.json")
     assert res.exit_code == 0 and "unchanged" in res.stdout
     assert run(db, "machine", "add", DATA / "xy-pdccilc.json").exit_code == 0
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         assert lib.machines() == ["xy-pdccilc", "xyz"]
         assert lib.machine("xyz").to_dict() == json.loads((DATA / "xyz.json").read_text())
     listing = run(db, "machine", "list")
@@ -102,7 +102,7 @@ def test_machine_add_replace(tmp_path):
     assert res.exit_code == 2 and "--replace" in res.stderr
     res = run(db, "machine", "add", other, "--replace")
     assert res.exit_code == 0 and "replaced machine 'xyz'" in res.stdout
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         assert lib.machine("xyz").plants["x"][0].tolist() == [1.5]
 
 
@@ -112,7 +112,7 @@ def test_machine_remove(db):
     assert count(db) == 1
     res = run(db, "machine", "remove", "xyz", "--with-primitives")
     assert res.exit_code == 0 and "removed machine 'xyz' and its 1 primitives" in res.stdout
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         assert lib.machines() == [] and lib.primitives() == []
 
 
@@ -122,7 +122,7 @@ def test_ingest_with_signal_stores_what_the_files_hold(tmp_path, db):
     res = run(db, "ingest", path, "--signal", other_signal, "--machine", "xyz", "--name", "g1")
     assert res.exit_code == 0, res.output
     assert "added 1 primitive to machine 'xyz'" in res.stdout
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         info = lib.primitives()[-1]
         assert (info.name, info.source, info.n_samples) == ("g1", str(path), N)
         _, u_file = read_signal_csv(other_signal)
@@ -141,7 +141,7 @@ def test_ingest_many_reads_sibling_signals(tmp_path, db):
     res = run(db, "ingest", *everything, "-m", "xyz")
     assert res.exit_code == 0, res.output
     assert "added 4 primitives" in res.stdout
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         infos = lib.primitives()[1:]
         assert [p.name for p in infos] == ["p0", "p1", "p2", "p3"]
         for p, (_, _, u) in zip(infos, files, strict=True):
@@ -157,7 +157,7 @@ def test_ingest_learn_stores_a_learned_signal(tmp_path):
     write_path_csv(tmp_path / "learn.csv", t, pts)
     res = run(db, "ingest", tmp_path / "learn.csv", "--learn", "--iterations", "2", "-m", "xyz")
     assert res.exit_code == 0, res.output
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         info = lib.primitives()[-1]
         assert "learned by ILC, 2 iterations" in info.source
         u = lib.signal(info.id)
@@ -190,7 +190,7 @@ def test_list_show_remove(tmp_path, db, monkeypatch):
     shown = run(db, "show", "2")
     assert shown.exit_code == 0 and "primitive 2: glyph" in shown.stdout
     d = json.loads(run(db, "show", "2", "--json").stdout)
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         p = lib.get(2)
         np.testing.assert_array_equal(d["nurbs"]["ctrlpts"], p.trajectory.ctrlpts)
         assert d["signal_rms"]["x"] == pytest.approx(np.sqrt(np.mean(p.signal[:, 0] ** 2)))
@@ -358,7 +358,7 @@ def test_help_documents_the_sibling_signal_file():
 
 
 def test_a_busy_library_exits_2_with_one_line(tmp_path, db):
-    hold = "import sys\nfrom primlib.store import Library\nlib = Library(sys.argv[1])\n"
+    hold = "import sys\nfrom primlib.store import Store\nlib = Store(sys.argv[1])\n"
     hold += "print('open', flush=True)\nsys.stdin.read()\nlib.close()\n"
     root = str(Path(__file__).resolve().parents[1])
     with subprocess.Popen(

@@ -11,8 +11,9 @@ from scipy.spatial.transform import Rotation
 from primlib.cli import main
 from primlib.io import read_signal_csv, write_path_csv
 from primlib.nurbs import Trajectory
+from primlib.pipeline import Library
 from primlib.plant import Machine, invert
-from primlib.store import Library
+from primlib.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
 EPS = 0.05
@@ -33,7 +34,7 @@ def setup(tmp_path_factory):
     machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
     rng = np.random.default_rng(0)
     trajs = [_primitive(rng, machine.dt) for _ in range(4)]
-    with Library(db) as lib:
+    with Store(db) as lib:
         lib.add_machine(machine)
         items = []
         for i, tr in enumerate(trajs):
@@ -86,7 +87,7 @@ def test_json_reads_back_and_transforms_hold(setup):
     assert segs[1]["time_scale"] == pytest.approx(0.5 * 400 / 250, rel=1e-3)
     assert all(s["rmsd"] < EPS for s in segs)
     # each declared transform, checked through the stored trajectory and the CSV path
-    with Library(setup["db"], read_only=True) as lib:
+    with Store(setup["db"], read_only=True) as lib:
         path = Trajectory.from_csv(setup["csv"])
         for s in segs:
             prim = lib.get(s["primitive"]).trajectory

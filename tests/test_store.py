@@ -1,4 +1,4 @@
-"""Library: DuckDB round trips, all-or-nothing batches, bank, lookups, errors, busy files."""
+"""Store: DuckDB round trips, all-or-nothing batches, bank, lookups, errors, busy files."""
 
 from __future__ import annotations
 
@@ -17,9 +17,10 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from primlib import InputError, LibraryBusyError, NotALibraryError, NotFoundError
+from primlib.defaults import MAX_ABS_VALUE
 from primlib.nurbs import Trajectory
 from primlib.plant import Machine
-from primlib.store import MIGRATIONS, SCHEMA_VERSION, Bank, Library, _schema
+from primlib.store import MIGRATIONS, SCHEMA_VERSION, Bank, Store, _schema
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "machines"
 DT = 0.005
@@ -55,7 +56,7 @@ def sha(path: Path) -> str:
 
 @pytest.fixture
 def lib():
-    with Library() as library:
+    with Store() as library:
         library.add_machine(xyz())
         yield library
 
@@ -63,19 +64,19 @@ def lib():
 # ---------------------------------------------------------------------------- round trips
 @settings(max_examples=12, deadline=None)
 @given(
-    seeds=st.lists(st.integers(0, 2**31), min_size=1, max_size=4),
+    seeds=st.lists(st.integers(0, 2**31), min_size=1, max_size=4, unique=True),
     steps=st.integers(8, 120),
     d=st.sampled_from([2, 3]),
     data=st.data(),
 )
 def test_round_trip_returns_equal_arrays(seeds, steps, d, data):
     # Bit-exact: DuckDB DOUBLE[] and the Arrow buffers carry float64 unchanged, including
-    # extreme magnitudes, subnormals and signed zeros.
+    # the largest magnitudes accepted, subnormals and signed zeros.
     machine = xyz() if d == 3 else xy()
     paths = [curve(s, d=d, steps=steps, rational=bool(s % 2)) for s in seeds]
-    floats = st.floats(allow_nan=False, allow_infinity=False, width=64)
+    floats = st.floats(-MAX_ABS_VALUE, MAX_ABS_VALUE, allow_nan=False, width=64)
     us = [data.draw(hnp.arrays(np.float64, (steps + 1, d), elements=floats)) for _ in paths]
-    with Library() as lib:
+    with Store() as lib:
         lib.add_machine(machine)
         ids = lib.add_many(
             [(p, u, f"p{i}", None) for i, (p, u) in enumerate(zip(paths, us, strict=True))],
@@ -101,12 +102,12 @@ def test_file_round_trip_survives_reopening(tmp_path):
     db = tmp_path / "lib.duckdb"
     paths = [curve(s, steps=200 + 40 * s) for s in range(3)]
     us = [signal_for(p, s) for s, p in enumerate(paths)]
-    with Library(db) as lib:
+    with Store(db) as lib:
         lib.add_machine(xyz())
         ids = lib.add_many(
             [(p, u, f"g{i}", "test") for i, (p, u) in enumerate(zip(paths, us, strict=True))], "xyz"
         )
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         assert [p.id for p in lib.primitives()] == ids
         assert lib.machine("xyz") == xyz()
         bank = lib.bank("xyz")
@@ -159,7 +160,7 @@ def test_bank_is_cached_until_the_machine_s_primitives_change(lib):
 
 def test_bank_signals_are_read_on_first_use_and_stay_aligned(tmp_path):
     db = tmp_path / "lib.duckdb"
-    lib = Library(db)
+    lib = Store(db)
     lib.add_machine(xyz())
     a, b, c = lib.add_many([(curve(s), signal_for(curve(s), s)) for s in range(3)], "xyz")
     bank = lib.bank("xyz")
@@ -183,7 +184,7 @@ def test_bank_signals_are_read_on_first_use_and_stay_aligned(tmp_path):
 def test_bank_matches_the_stored_set_after_any_adds_and_removes(ops):
     # The bank cache keys on (count, largest id); any sequence of adds and removes must
     # give the bank a fresh read would give.
-    with Library() as lib:
+    with Store() as lib:
         lib.add_machine(xyz())
         stored: dict[int, np.ndarray] = {}
         for step, (add, k) in enumerate(ops):
@@ -365,21 +366,21 @@ def test_machine_json_is_validated_by_machine(lib):
 
 def test_read_only_and_closed_libraries_refuse_writes(tmp_path):
     db = tmp_path / "lib.duckdb"
-    with Library(db) as lib:
+    with Store(db) as lib:
         lib.add_machine(xyz())
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         with pytest.raises(InputError, match=r"is open read-only"):
             lib.add(curve(0), signal_for(curve(0)), machine="xyz")
     lib.close()  # twice is harmless
     with pytest.raises(InputError, match=r"lib.duckdb is closed"):
         lib.primitives()
     with pytest.raises(InputError, match=r"in-memory library cannot be read-only"):
-        Library(read_only=True)
+        Store(read_only=True)
 
 
 # ---------------------------------------------------------------------------- schema
 def test_a_new_library_records_every_migration_in_order(tmp_path):
-    with Library(tmp_path / "lib.duckdb") as lib:
+    with Store(tmp_path / "lib.duckdb") as lib:
         log = lib.migrations()
         assert lib.schema_version == SCHEMA_VERSION == MIGRATIONS[-1][0]
     assert [v for v, _, _ in log] == [m[0] for m in MIGRATIONS]
@@ -396,25 +397,27 @@ def test_an_older_library_is_migrated_on_open_and_the_step_recorded(tmp_path):
         "INSERT INTO machines VALUES ('m', 'lti', 0.005, ['x','y'], '{}', now()::TIMESTAMP)"
     )
     con.close()
-    with Library(db) as lib:
+    with Store(db) as lib:
         assert lib.schema_version == SCHEMA_VERSION
-        assert [v for v, _, _ in lib.migrations()] == [1, 2]
+        assert [v for v, _, _ in lib.migrations()] == list(range(1, SCHEMA_VERSION + 1))
         assert lib.machines() == ["m"]  # data kept across the upgrade
 
 
 def test_migrations_apply_in_order_and_a_failing_step_rolls_back_alone(tmp_path):
     con = duckdb.connect(str(tmp_path / "x.duckdb"))
+    v = SCHEMA_VERSION
     steps = [
         *MIGRATIONS,
-        (3, "add a column", "ALTER TABLE machines ADD COLUMN note VARCHAR"),
-        (4, "callable step", lambda c: c.execute("CREATE TABLE extra (x INTEGER)")),
-        (5, "broken", "CREATE TABLE extra2 (x INTEGER); SELECT * FROM no_such_table"),
+        (v + 1, "add a column", "ALTER TABLE machines ADD COLUMN note VARCHAR"),
+        (v + 2, "callable step", lambda c: c.execute("CREATE TABLE extra (x INTEGER)")),
+        (v + 3, "broken", "CREATE TABLE extra2 (x INTEGER); SELECT * FROM no_such_table"),
     ]
     with pytest.raises(duckdb.CatalogException):
         _schema.migrate(con, 0, steps)
     versions = [r[0] for r in con.sql("SELECT version FROM migrations ORDER BY 1").fetchall()]
-    assert versions == [1, 2, 3, 4]
-    assert con.sql("SELECT value FROM meta WHERE key = 'schema_version'").fetchall() == [("4",)]
+    assert versions == list(range(1, v + 3))
+    got = con.sql("SELECT value FROM meta WHERE key = 'schema_version'").fetchall()
+    assert got == [(str(v + 2),)]
     tables = {r[0] for r in con.sql("SELECT table_name FROM duckdb_tables()").fetchall()}
     assert "extra" in tables and "extra2" not in tables
     with pytest.raises(ValueError, match=r"numbered 1, 2, \.\.\. in order, got \[1, 3\]"):
@@ -424,15 +427,15 @@ def test_migrations_apply_in_order_and_a_failing_step_rolls_back_alone(tmp_path)
 
 def test_a_library_of_a_newer_schema_is_refused(tmp_path):
     db = tmp_path / "new.duckdb"
-    Library(db).close()
+    Store(db).close()
     con = duckdb.connect(str(db))
     con.execute("UPDATE meta SET value = '99' WHERE key = 'schema_version'")
     con.close()
     with pytest.raises(
         NotALibraryError,
-        match=r"schema version 99, newer than this primlib reads \(2\); upgrade primlib",
+        match=rf"schema version 99, newer than this primlib reads \({SCHEMA_VERSION}\); upgrade",
     ):
-        Library(db)
+        Store(db)
 
 
 # ---------------------------------------------------------------------------- not a library
@@ -448,7 +451,7 @@ def test_files_that_are_not_libraries_are_refused_and_left_alone(tmp_path):
     for f in (text, empty, foreign):
         before = sha(f)
         with pytest.raises(NotALibraryError, match=rf"{f.name} is not a primlib library"):
-            Library(f)
+            Store(f)
         assert sha(f) == before
     con = duckdb.connect(str(foreign), read_only=True)
     assert [r[0] for r in con.sql("SELECT table_name FROM duckdb_tables()").fetchall()] == [
@@ -456,19 +459,19 @@ def test_files_that_are_not_libraries_are_refused_and_left_alone(tmp_path):
     ]
     con.close()
     with pytest.raises(InputError, match=r"expected a library file, got a directory"):
-        Library(tmp_path)
+        Store(tmp_path)
     with pytest.raises(InputError, match=r"missing.duckdb: no such library file"):
-        Library(tmp_path / "missing.duckdb", create=False)
+        Store(tmp_path / "missing.duckdb", create=False)
     with pytest.raises(InputError, match=r"folder .*nowhere does not exist"):
-        Library(tmp_path / "nowhere" / "lib.duckdb")
+        Store(tmp_path / "nowhere" / "lib.duckdb")
 
 
 def test_an_empty_duckdb_database_becomes_a_library(tmp_path):
     db = tmp_path / "blank.duckdb"
     duckdb.connect(str(db)).close()
     with pytest.raises(NotALibraryError, match=r"an empty DuckDB database, opened read-only"):
-        Library(db, read_only=True)
-    with Library(db) as lib:
+        Store(db, read_only=True)
+    with Store(db) as lib:
         assert lib.schema_version == SCHEMA_VERSION
 
 
@@ -476,8 +479,8 @@ def test_an_empty_duckdb_database_becomes_a_library(tmp_path):
 HOLDER = textwrap.dedent(
     """
     import sys
-    from primlib.store import Library
-    lib = Library(sys.argv[1])
+    from primlib.store import Store
+    lib = Store(sys.argv[1])
     print("open", flush=True)
     sys.stdin.read()
     lib.close()
@@ -487,7 +490,7 @@ HOLDER = textwrap.dedent(
 
 def test_a_second_process_gets_a_busy_error_not_a_traceback(tmp_path):
     db = tmp_path / "lib.duckdb"
-    with Library(db) as lib:
+    with Store(db) as lib:
         lib.add_machine(xyz())
     root = str(Path(__file__).resolve().parents[1])
     holder = subprocess.Popen(
@@ -501,13 +504,13 @@ def test_a_second_process_gets_a_busy_error_not_a_traceback(tmp_path):
         assert holder.stdout.readline().strip() == "open"
         busy = r"lib.duckdb is busy: another process has it open; try again when it finishes"
         with pytest.raises(LibraryBusyError, match=busy):
-            Library(db)
+            Store(db)
         with pytest.raises(LibraryBusyError, match=busy):
-            Library(db, read_only=True)
+            Store(db, read_only=True)
     finally:
         holder.stdin.close()
         holder.wait(timeout=30)
         holder.stdout.close()
     assert holder.returncode == 0
-    with Library(db) as lib:  # free again once the other process is done
+    with Store(db) as lib:  # free again once the other process is done
         assert lib.machines() == ["xyz"]

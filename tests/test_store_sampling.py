@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from primlib import InputError
 from primlib.nurbs import Trajectory, sample_many
 from primlib.plant import Machine
-from primlib.store import Library
+from primlib.store import Store
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "machines"
 DT = 0.005
@@ -118,7 +118,7 @@ def test_add_many_stores_the_same_points_for_trajectories_and_other_paths():
         (_DuckPath(p) if i in (1, 4) else p, np.full((241, 3), float(i)), f"p{i}")
         for i, p in enumerate(paths)
     ]
-    with Library() as lib:
+    with Store() as lib:
         lib.add_machine(Machine.from_json(DATA / "xyz.json"))
         ids = lib.add_many(items, "xyz")
         for pid, path in zip(ids, paths, strict=True):
@@ -132,7 +132,7 @@ def test_add_many_names_the_item_whose_path_samples_to_nan():
             out[5, 1] = np.nan
             return out
 
-    with Library() as lib:
+    with Store() as lib:
         lib.add_machine(Machine.from_json(DATA / "xyz.json"))
         with pytest.raises(InputError, match=r"item 1 \('b'\): expected the path to sample to"):
             lib.add_many(
@@ -155,7 +155,7 @@ def test_a_big_batch_is_written_to_the_file_at_commit_not_left_in_the_wal(tmp_pa
     rng = np.random.default_rng(0)
     us = [rng.standard_normal((steps + 1, 3)) for _ in range(150)]
     db = tmp_path / "big.duckdb"
-    with Library(db) as lib:
+    with Store(db) as lib:
         lib.add_machine(machine)
         threads = lib._con.sql("SELECT current_setting('threads')").fetchall()[0][0]
         ids = lib.add_many([(path, u) for u in us], machine.name)
@@ -166,6 +166,6 @@ def test_a_big_batch_is_written_to_the_file_at_commit_not_left_in_the_wal(tmp_pa
         assert lib._con.sql("SELECT current_setting('checkpoint_threshold')").fetchall()[0][0] == (
             "16.0 MiB"
         )
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         np.testing.assert_array_equal(lib.signal(ids[7]), us[7])
         np.testing.assert_array_equal(lib.bank(machine.name).signals[: steps + 1], us[0])

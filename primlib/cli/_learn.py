@@ -8,89 +8,95 @@ converged input as a new primitive, so the library grows with every path it lear
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
-from typing import Any
 
 import click
 import numpy as np
 
-from primlib._errors import InputError, NoMatchError
+from primlib._errors import InputError
 from primlib.cli import main
+from primlib.cli._output import FIGURE_FORMATS, check_output
+from primlib.pipeline import LAWS, LearnRun
 
-__all__ = ["learn", "example", "run_learning", "MASTER_SLAVE_LAWS"]
-
-# laws of the master-slave PDCCILC paper: two-axis machines, primlib.ilc.learn_master_slave
-MASTER_SLAVE_LAWS = ("tdilc", "tdccilc", "pdilc", "pdccilc")
+__all__ = ["learn", "example"]
 
 
-def run_learning(
-    lib,
-    trajectory,
-    machine_name: str,
-    *,
-    cold: bool,
-    iterations: int,
-    eps: float | None,
-    band: float | None,
-    law: str,
-    tol: float | None,
-    contour: bool = True,
-) -> dict[str, Any]:
-    """Warm start (unless ``cold``) and ILC on the machine model; everything the CLI reports.
+def _check_options(eps: float | None, tol: float | None, band: float | None) -> None:
+    if eps is not None and not eps > 0:
+        raise InputError(f"--eps: expected a match tolerance > 0, got {eps}")
+    if tol is not None and not tol > 0:
+        raise InputError(f"--tol: expected a tolerance > 0, got {tol}")
+    if band is not None and not band >= 0:
+        raise InputError(f"--band: expected a width >= 0 s, got {band}")
 
-    Returns
-    -------
-    dict
-        ``machine`` (Machine), ``reference`` (n, d), ``t`` (n,), ``warm`` (WarmStart or None),
-        ``start`` ("warm" / "cold"), ``result`` (ILCResult), ``contour`` (list or None),
-        ``notes`` (list of str).
-    """
-    from primlib.ilc import learn as ilc_learn
-    from primlib.ilc import learn_master_slave
-    from primlib.match import default_eps
-    from primlib.splice import warm_start
 
-    m = lib.machine(machine_name)
-    master_slave = law.lower() in MASTER_SLAVE_LAWS
-    if master_slave and m.dim != 2:
-        raise InputError(
-            f"--law: expected a two-axis machine for the master-slave law {law!r}, got "
-            f"machine '{machine_name}' with {m.dim} axes ({','.join(m.axes)})"
-        )
-    pts = trajectory.sample(m.dt)
-    ref = pts - pts[0]
-    t = np.arange(pts.shape[0]) * m.dt
-    notes: list[str] = []
-    ws = None
-    u0 = None
-    if not cold:
-        e = eps if eps is not None else default_eps(trajectory)
-        try:
-            ws = warm_start(lib, trajectory, machine_name, e, band=band)
-            u0 = ws.u
-        except NoMatchError as exc:
-            notes.append(f"no warm start ({exc}); starting from zero")
-    if master_slave:
-        # tol there is on the RMS estimated contour error (the law's own measure)
-        res = learn_master_slave(m, ref, u0, law=law.lower(), iterations=iterations, tol=tol)
-    else:
-        # the convergence check is iterative beyond 400 samples (Lanczos on FFT operators):
-        # no dense n x n SVD, long paths (n = 5000) check in about a second
-        res = ilc_learn(
-            m, ref, u0, law=law, iterations=iterations, tol=tol, contour=contour and m.dim >= 2
-        )
-    crms = None if res.rms_contour is None else [float(x) for x in res.rms_contour]
-    return {
-        "machine": m,
-        "reference": ref,
-        "t": t,
-        "warm": ws,
-        "start": "warm" if ws is not None else "cold",
-        "result": res,
-        "contour": crms,
-        "notes": notes,
-    }
+def _segment_lines(sources: tuple[str, ...]) -> list[str]:
+    """The warm start's per-segment sources, numbered from 1 like ``primlib match``."""
+    return [f"segment {j}: " + re.sub(r"^segment \d+: ", "", s) for j, s in enumerate(sources, 1)]
+
+
+def _as_json(path: Path, machine_name: str, run: LearnRun, cold: LearnRun | None, new_id) -> str:
+    res = run.result
+    rms, crms = np.asarray(res.rms_total), run.contour
+    return json.dumps(
+        {
+            "path": str(path),
+            "machine": machine_name,
+            "start": run.start,
+            "iterations": [
+                {
+                    "iteration": i,
+                    "rms": float(rms[i]),
+                    "rms_axes": np.asarray(res.rms)[i].tolist(),
+                    "contour_rms": None if crms is None else crms[i],
+                }
+                for i in range(rms.size)
+            ],
+            "stopped": getattr(res, "stopped", None),
+            "warm_start": None if run.warm is None else run.warm.to_dict(),
+            "cold_rms": None if cold is None else np.asarray(cold.result.rms_total).tolist(),
+            "ingested": new_id,
+            "notes": list(run.notes),
+        }
+    )
+
+
+def _as_text(run: LearnRun) -> list[str]:
+    """The warm start's segments and the RMS per trial; row 0 is labelled as the start."""
+    lines = []
+    if run.warm is not None:
+        lines.append(f"warm start from {len(run.warm.match.segments)} segment(s):")
+        lines += [f"  {line}" for line in _segment_lines(run.warm.sources)]
+    rms, crms = np.asarray(run.result.rms_total), run.contour
+    lines.append(
+        f"{'iteration':>9}  {'rms':>12}" + ("" if crms is None else f"  {'contour rms':>12}")
+    )
+    start = "(warm start, before learning)" if run.warm is not None else "(zero input)"
+    for i in range(rms.size):
+        line = f"{i:>9}  {rms[i]:>12.6g}"
+        if crms is not None:
+            line += f"  {crms[i]:>12.6g}"
+        lines.append(line + (f"  {start}" if i == 0 else ""))
+    stopped = getattr(run.result, "stopped", None)
+    if stopped:
+        lines.append(f"stopped: {stopped}")
+    return lines
+
+
+def _plot(plot_file: Path, trajectory, run: LearnRun, cold: LearnRun | None) -> None:
+    from primlib.plot._warm import plot_warm_start
+
+    plot_warm_start(
+        plot_file,
+        trajectory.sample(run.machine.dt),
+        run.t,
+        run.warm,
+        np.asarray(run.result.rms_total),
+        None if cold is None else np.asarray(cold.result.rms_total),
+        axes=run.machine.axes,
+    )
 
 
 @main.command("learn")
@@ -103,7 +109,7 @@ def run_learning(
     default=20,
     show_default=True,
     type=click.IntRange(min=1),
-    help="ILC trials at most.",
+    help="ILC trials at most (the table also shows trial 0, the start).",
 )
 @click.option("--eps", type=float, help="Match tolerance (default: 3e-4 of the path's extent).")
 @click.option("--band", type=float, help="Transition band width, seconds (default 8 dt).")
@@ -111,6 +117,7 @@ def run_learning(
     "--law",
     default="norm-optimal",
     show_default=True,
+    type=click.Choice(LAWS, case_sensitive=False),
     help="ILC law: p, pd, pid, norm-optimal (primlib.ilc.learn) or, on a two-axis machine, "
     "the master-slave tdilc, tdccilc, pdilc, pdccilc (primlib.ilc.learn_master_slave).",
 )
@@ -147,121 +154,103 @@ def learn(
     """Learn the input for PATH (CSV t,x,y[,z]) by ILC on the machine's model.
 
     Starts from the library's warm start (match, time scale, superpose, splice) unless
-    --cold; prints the RMS tracking (and contour) error per iteration; --ingest stores the
-    converged input as a new primitive. Example:
+    --cold; prints the RMS tracking (and contour) error per iteration, iteration 0 being
+    the start itself; --ingest stores the converged input as a new primitive. Example:
 
     primlib learn data/paths/zigzag.csv --machine xyz --plot warm-start.png
     """
     from primlib.nurbs import Trajectory
-    from primlib.store import Library
+    from primlib.pipeline import Library, check_law, store_learned
+    from primlib.store import Store, check_name
 
-    if eps is not None and not eps > 0:
-        raise InputError(f"--eps: expected a match tolerance > 0, got {eps}")
-    if tol is not None and not tol > 0:
-        raise InputError(f"--tol: expected a tolerance > 0, got {tol}")
-    if band is not None and not band >= 0:
-        raise InputError(f"--band: expected a width >= 0 s, got {band}")
+    _check_options(eps, tol, band)
     if not path.is_file():
         raise InputError(f"{path}: expected a path CSV file, got no such file")
+    check_output("--plot", plot_file, FIGURE_FORMATS, inputs=[path])
+    stored_name = path.stem if name is None else name
+    if ingest:
+        check_name("--name", "the primitive's name", stored_name)
     trajectory = Trajectory.from_csv(path)
     db = ctx.find_root().obj["db"]
-    with Library(db, read_only=not ingest, create=False) as lib:
-        run = run_learning(
-            lib,
-            trajectory,
-            machine_name,
-            cold=cold,
-            iterations=iterations,
-            eps=eps,
-            band=band,
-            law=law,
-            tol=tol,
-        )
+    opts = {"iterations": iterations, "eps": eps, "band": band, "law": law, "tol": tol}
+    # Learn with the library open read-only (other readers and writers are not locked out
+    # for the whole run); take the write lock only to store the result.
+    with Library(db, read_only=True, create=False) as lib:
+        check_law(law, lib.machine(machine_name), option="--law")
+        run = lib.starter.learn(trajectory, machine_name, cold=cold, **opts)
         cold_run = None
-        if plot_file is not None and run["start"] == "warm":
-            cold_run = run_learning(
-                lib,
+        if plot_file is not None and run.start == "warm":
+            cold_run = lib.starter.learn(trajectory, machine_name, cold=True, contour=False, **opts)
+    new_id = None
+    if ingest:
+        with Store(db, create=False) as store:
+            new_id = store_learned(
+                store,
+                run,
                 trajectory,
                 machine_name,
-                cold=True,
-                iterations=iterations,
-                eps=eps,
-                band=band,
-                law=law,
-                tol=tol,
-                contour=False,
-            )
-        res = run["result"]
-        new_id = None
-        if ingest:
-            new_id = lib.add(
-                trajectory,
-                np.asarray(res.u),
-                machine=machine_name,
-                name=name or path.stem,
-                source=f"{path} (primlib learn, {run['start']} start)",
+                name=stored_name,
+                source=f"{path} (primlib learn, {run.start} start)",
             )
     if plot_file is not None:
-        from primlib.plot._warm import plot_warm_start
-
-        plot_warm_start(
-            plot_file,
-            trajectory.sample(run["machine"].dt),
-            run["t"],
-            run["warm"],
-            np.asarray(res.rms_total),
-            None if cold_run is None else np.asarray(cold_run["result"].rms_total),
-            axes=run["machine"].axes,
-        )
-    rms = np.asarray(res.rms_total)
-    crms = run["contour"]
+        _plot(plot_file, trajectory, run, cold_run)
     if as_json:
-        out = {
-            "path": str(path),
-            "machine": machine_name,
-            "start": run["start"],
-            "iterations": [
-                {
-                    "iteration": i,
-                    "rms": float(rms[i]),
-                    "rms_axes": np.asarray(res.rms)[i].tolist(),
-                    "contour_rms": None if crms is None else crms[i],
-                }
-                for i in range(rms.size)
-            ],
-            "stopped": getattr(res, "stopped", None),
-            "warm_start": None if run["warm"] is None else run["warm"].to_dict(),
-            "cold_rms": None
-            if cold_run is None
-            else np.asarray(cold_run["result"].rms_total).tolist(),
-            "ingested": new_id,
-            "notes": run["notes"],
-        }
-        click.echo(json.dumps(out))
+        click.echo(_as_json(path, machine_name, run, cold_run, new_id))
         return
-    for note in run["notes"]:
+    for note in run.notes:
         click.echo(f"note: {note}", err=True)
-    ws = run["warm"]
-    if ws is not None:
-        click.echo(f"warm start from {len(ws.match.segments)} segment(s):")
-        for line in ws.sources:
-            click.echo(f"  {line}")
-    click.echo(
-        f"{'iteration':>9}  {'rms':>12}" + ("" if crms is None else f"  {'contour rms':>12}")
-    )
-    for i in range(rms.size):
-        line = f"{i:>9}  {rms[i]:>12.6g}"
-        if crms is not None:
-            line += f"  {crms[i]:>12.6g}"
-        click.echo(line)
-    stopped = getattr(res, "stopped", None)
-    if stopped:
-        click.echo(f"stopped: {stopped}")
+    click.echo("\n".join(_as_text(run)))
     if new_id is not None:
-        click.echo(f"stored primitive {new_id} ({name or path.stem}) for machine '{machine_name}'")
+        click.echo(f"stored primitive {new_id} ({stored_name}) for machine '{machine_name}'")
     if plot_file is not None:
         click.echo(f"wrote {plot_file}", err=True)
     sys.stdout.flush()
+
+
+def _example_files(data_dir: Path, path_name: str) -> tuple[Path, Path, Path]:
+    """The example's machine JSON, library folder and path CSV, or one sentence why not."""
+    machine_file = data_dir / "machines" / "xyz.json"
+    lib_dir = data_dir / "library"
+    for f in (machine_file, lib_dir):
+        if not f.exists():
+            raise InputError(
+                f"{f}: expected the example data (run from a primlib clone, or "
+                f"pass --data), got no such file"
+            )
+    path = data_dir / "paths" / f"{path_name}.csv"
+    if not path.is_file():
+        names = sorted(p.stem for p in (data_dir / "paths").glob("*.csv"))
+        raise InputError(
+            f"--path: expected one of the example paths in {data_dir / 'paths'} "
+            f"({', '.join(names) or 'none'}), got {path_name!r}"
+        )
+    return machine_file, lib_dir, path
+
+
+def _add_example_library(db: str, machine, lib_dir: Path) -> int:
+    """Add the example machine and bundled primitives when missing; how many were added."""
+    from primlib.io import read_signal_csv
+    from primlib.nurbs import Trajectory
+    from primlib.store import Store
+
+    files = sorted(f for f in lib_dir.glob("*.csv") if not f.name.endswith(".signal.csv"))
+    with Store(db) as lib:
+        if machine.name not in lib.machines():
+            lib.add_machine(machine)
+        elif lib.machine(machine.name).to_dict() != machine.to_dict():
+            raise InputError(
+                f"{db}: machine '{machine.name}' there has another model than the example's "
+                f"({lib_dir.parent / 'machines' / 'xyz.json'}); the example's primitives would "
+                "not fit it, so nothing was added (use another --db)"
+            )
+        if lib.primitives(machine.name):
+            return 0
+        items = []
+        for f in files:
+            traj = Trajectory.from_csv(f)
+            _, u = read_signal_csv(f.with_name(f"{f.stem}.signal.csv"), t=traj.times(machine.dt))
+            items.append((traj, u, f.stem, str(f)))
+        return len(lib.add_many(items, machine.name))
 
 
 @main.command("example")
@@ -297,42 +286,22 @@ def example(
 
     Adds the XYZ machine of the primitive-matching paper and the bundled primitives
     (DATA/library/<stem>.csv with <stem>.signal.csv) to the library when they are not there
-    yet, then runs ``primlib learn DATA/paths/PATH.csv --machine xyz --plot FIG``: match,
-    warm start, ILC, and a figure of the path's segments, u0 with its junction bands, and
-    the RMS per iteration warm vs cold.
+    yet (refused when the library's machine xyz has another model), then runs ``primlib
+    learn DATA/paths/PATH.csv --machine xyz --plot FIG``: match, warm start, ILC, and a
+    figure of the path's segments, u0 with its junction bands, and the RMS per iteration
+    warm vs cold.
     """
-    from primlib.io import read_signal_csv
-    from primlib.nurbs import Trajectory
     from primlib.plant import Machine
-    from primlib.store import Library
 
-    machine_file = data_dir / "machines" / "xyz.json"
-    lib_dir = data_dir / "library"
-    path = data_dir / "paths" / f"{path_name}.csv"
-    for f in (machine_file, lib_dir, path):
-        if not f.exists():
-            raise InputError(
-                f"{f}: expected the example data (run from a primlib clone, or "
-                f"pass --data), got no such file"
-            )
+    machine_file, lib_dir, path = _example_files(data_dir, path_name)
+    check_output("--plot", plot_file, FIGURE_FORMATS)
     machine = Machine.from_json(machine_file)
-    files = sorted(f for f in lib_dir.glob("*.csv") if not f.name.endswith(".signal.csv"))
     db = ctx.find_root().obj["db"]
-    with Library(db) as lib:
-        if machine.name not in lib.machines():
-            lib.add_machine(machine)
-        if not lib.primitives(machine.name):
-            items = []
-            for f in files:
-                traj = Trajectory.from_csv(f)
-                t = traj.times(machine.dt)
-                _, u = read_signal_csv(f.with_name(f"{f.stem}.signal.csv"), t=t)
-                items.append((traj, u, f.stem, str(f)))
-            lib.add_many(items, machine.name)
-            click.echo(
-                f"added {len(items)} example primitives to machine '{machine.name}' in {db}",
-                err=True,
-            )
+    added = _add_example_library(db, machine, lib_dir)
+    if added:
+        click.echo(
+            f"added {added} example primitives to machine '{machine.name}' in {db}", err=True
+        )
     ctx.invoke(
         learn, path=path, machine_name=machine.name, iterations=iterations, plot_file=plot_file
     )

@@ -1,7 +1,8 @@
 """Library commands: ``machine add/list/remove``, ``ingest``, ``list``, ``show``, ``remove``.
 
 A thin layer: files are read by :mod:`primlib.io`, paths fitted by
-:class:`primlib.nurbs.Trajectory`, and everything is stored by :class:`primlib.store.Library`.
+:class:`primlib.nurbs.Trajectory`, and everything is stored by :class:`primlib.store.Store`
+(``ingest --learn`` learns through :class:`primlib.pipeline.Library`).
 ``ingest`` reads and checks every file before its one write transaction, so one bad file
 means nothing is written.
 """
@@ -18,6 +19,8 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.cli import main
+from primlib.pipeline import Library
+from primlib.store import Store
 
 __all__ = ["machine", "ingest", "list_primitives", "show", "remove"]
 
@@ -30,10 +33,14 @@ def _db(ctx: click.Context) -> str:
     return ctx.find_root().obj["db"]
 
 
-def _open(ctx: click.Context, *, read_only: bool = False, create: bool = False):
-    from primlib.store import Library
+def _open(ctx: click.Context, *, read_only: bool = False, create: bool = False) -> Store:
+    """The store of ``--db`` (persistence only)."""
+    return Store(_db(ctx), read_only=read_only, create=create)
 
-    return Library(_db(ctx), read_only=read_only, create=create)
+
+def _open_library(ctx: click.Context, *, read_only: bool = False) -> Library:
+    """The library of ``--db`` with the pipeline (match, warm start, learn)."""
+    return Library(_db(ctx), read_only=read_only, create=False)
 
 
 def _table(headers: list[str], rows: list[list[str]], right: set[int]) -> str:
@@ -255,7 +262,7 @@ def ingest(
 
     # Read, check and fit every file (and learn) with the library open read-only, so other
     # readers are not locked out meanwhile; take the write lock only for the one transaction.
-    with _open(ctx, read_only=True) as lib:
+    with _open_library(ctx, read_only=True) as lib:
         m = lib.machine(machine_name)
         read = []
         with click.progressbar(
@@ -267,13 +274,15 @@ def ingest(
             for path, signal in bar:
                 read.append((path, *_read_one(path, signal, m, learn)))
         if learn:
-            from primlib.splice import learn_signal
-
             with click.progressbar(
                 read, label="learning by ILC", file=sys.stderr, hidden=len(read) < 2
             ) as bar:
                 read = [
-                    (path, traj, learn_signal(lib, traj, machine_name, iterations=iterations))
+                    (
+                        path,
+                        traj,
+                        lib.learn(traj, machine_name, iterations=iterations, contour=False).u,
+                    )
                     for path, traj, _ in bar
                 ]
     how = f" (learned by ILC, {iterations} iterations)" if learn else ""

@@ -114,7 +114,7 @@ def match(
     primlib match new_path.csv --machine xyz --eps 0.05
     primlib match new_path.csv --machine xyz --json --plot match.png --out u0.csv
     """
-    from primlib.cli._library import _open
+    from primlib.cli._library import _open_library
     from primlib.match import default_eps
     from primlib.nurbs import Trajectory
 
@@ -124,7 +124,7 @@ def match(
         if f is not None and not f.parent.exists():
             raise InputError(f"{opt} {f}: directory {f.parent} does not exist")
     traj = Trajectory.from_csv(path_csv)
-    with _open(ctx, read_only=True) as lib:
+    with _open_library(ctx, read_only=True) as lib:
         m = lib.machine(machine_name)
         if traj.dim != m.dim:
             raise InputError(

@@ -16,10 +16,10 @@ scale k; each primitive's converged input is
    stored pairs measured (:func:`piece_error`), so the model's error only multiplies what
    the library does not already know; see :mod:`primlib.splice._splice`.
 
-:func:`warm_start` does all of it from a library, by default on the machine model refined
-on the matched primitives' own (input, path) pairs (:func:`refine_machine`: the stored
-signals were learned on the real machine, so they tell how it differs from its model);
-:func:`learn_signal` runs ILC from it.
+:class:`primlib.pipeline.WarmStarter` does all of it from a library, by default on the
+machine model refined on the matched primitives' own (input, path) pairs
+(:func:`refine_machine`: the stored signals were learned on the real machine, so they tell
+how it differs from its model), and runs ILC from it.
 
 Which time scaling is used when: a piece with k = 1 on the grid uses the stored input as it
 is; otherwise ``method="auto"`` uses eq. (20) when the primitive is stored at as many
@@ -47,14 +47,6 @@ from primlib.splice._transform import (
     time_scale_direct,
     transform,
 )
-from primlib.splice._warm import (
-    DEFAULT_EPS,
-    WarmStart,
-    find_versions,
-    learn_signal,
-    stored_signals,
-    warm_start,
-)
 
 __all__ = [
     "time_scale",
@@ -72,12 +64,6 @@ __all__ = [
     "StoredSignal",
     "METHODS",
     "CORRECTIONS",
-    "WarmStart",
-    "DEFAULT_EPS",
-    "warm_start",
-    "learn_signal",
-    "find_versions",
-    "stored_signals",
     "continuous_output",
     "resample_zoh",
     "refine_machine",

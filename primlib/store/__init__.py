@@ -1,13 +1,33 @@
-"""The primitive library: one DuckDB file of machines and learned motion primitives.
+"""The primitive store: one DuckDB file of machines and learned motion primitives.
 
-``Library`` stores, per machine, NURBS paths with the converged ILC input learned for each,
-both sampled on the machine's grid; ``Bank`` is a machine's whole set as flat arrays for the
-matcher; ``PrimitiveInfo`` / ``Primitive`` are single records. This is the only package that
-imports duckdb. Schema and migrations: :mod:`primlib.store._schema`.
+Persistence only (it imports none of ``match``, ``splice``, ``ilc`` or ``pipeline``):
+:class:`Store` keeps, per machine, NURBS paths with the converged ILC input learned for each,
+both sampled on the machine's grid; :class:`Bank` is a machine's whole set as flat arrays for
+the matcher; :class:`PrimitiveInfo` / :class:`Primitive` are single records; :class:`AddResult`
+says what a batch write stored. This is the only package that imports duckdb.
+
+Modules: ``_connection`` (opening, locking, schema check, transactions), ``_schema`` (the
+ordered, recorded migrations), ``_codec`` (Arrow buffers both ways), ``_validate`` (checks
+before any write), ``_insert`` (batch writes), ``_machines`` (the machines table), ``_store``
+(the public class).
 """
 
-from primlib.store._library import Library
-from primlib.store._schema import MIGRATIONS, SCHEMA_VERSION
-from primlib.store._types import Bank, Primitive, PrimitiveInfo
+from primlib.store._connection import WriteCancelled
+from primlib.store._schema import MIGRATIONS, SCHEMA_VERSION, migrate
+from primlib.store._store import Store
+from primlib.store._types import AddResult, Bank, Primitive, PrimitiveInfo
+from primlib.store._validate import check_name, content_hash
 
-__all__ = ["Library", "Bank", "Primitive", "PrimitiveInfo", "MIGRATIONS", "SCHEMA_VERSION"]
+__all__ = [
+    "Store",
+    "Bank",
+    "Primitive",
+    "PrimitiveInfo",
+    "AddResult",
+    "WriteCancelled",
+    "MIGRATIONS",
+    "SCHEMA_VERSION",
+    "migrate",
+    "content_hash",
+    "check_name",
+]

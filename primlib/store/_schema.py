@@ -7,7 +7,7 @@ its own transaction together with the bump of ``meta.schema_version`` and a row 
 and leaves the file at the previous version. Steps are SQL text or a callable taking the
 connection. Never edit a released step: append a new one.
 
-Layout (version 2):
+Layout (version 3):
 
 ``meta(key, value)``
     ``application = primlib`` marks a primlib library; ``schema_version``.
@@ -23,6 +23,12 @@ ctrlpts, weights, points, signal)``
     (n_samples x dim) ``DOUBLE[]``. DuckDB stores columns apart, so listing metadata never
     reads the arrays. ``id`` is the primary key (a unique ART index: one row by id without
     a scan) and comes from the sequence ``primitive_ids``, so a removed id is never reused.
+    ``content_hash`` (version 3) identifies machine, path and signal
+    (:func:`primlib.store._validate.content_hash`): the same primitive is not stored twice
+    unless asked to.
+
+To add a step, append ``(next version, description, SQL text or callable)`` to
+:data:`MIGRATIONS`; nothing else changes.
 """
 
 from __future__ import annotations
@@ -31,11 +37,46 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
+import numpy as np
+import pyarrow as pa
+
+from primlib.store._codec import flat
+from primlib.store._validate import content_hash
+
 __all__ = ["APPLICATION", "MIGRATIONS", "SCHEMA_VERSION", "Migration", "migrate", "utcnow"]
 
 APPLICATION = "primlib"
 
 Migration = tuple[int, str, "str | Callable[[Any], None]"]
+
+
+def _add_content_hash(con: Any) -> None:
+    """Version 3: the ``content_hash`` column, computed for the rows already stored."""
+    con.execute("ALTER TABLE primitives ADD COLUMN content_hash VARCHAR")
+    table = con.sql("SELECT id, machine, dim, points, signal FROM primitives").to_arrow_table()
+    if table.num_rows == 0:
+        return
+    lengths = table.column("points").combine_chunks().value_lengths().to_numpy()
+    offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    points, signals = flat(table.column("points")), flat(table.column("signal"))
+    dims = table.column("dim").to_numpy()
+    hashes = [
+        content_hash(
+            machine,
+            points[offsets[i] : offsets[i + 1]].reshape(-1, int(dims[i])),
+            signals[offsets[i] : offsets[i + 1]].reshape(-1, int(dims[i])),
+        )
+        for i, machine in enumerate(table.column("machine").to_pylist())
+    ]
+    con.register("_primlib_hashes", pa.table({"id": table.column("id"), "h": hashes}))
+    try:
+        con.execute(
+            "UPDATE primitives SET content_hash = _primlib_hashes.h FROM _primlib_hashes "
+            "WHERE primitives.id = _primlib_hashes.id"
+        )
+    finally:
+        con.unregister("_primlib_hashes")
+
 
 MIGRATIONS: list[Migration] = [
     (
@@ -83,7 +124,9 @@ MIGRATIONS: list[Migration] = [
         );
         """,
     ),
+    (3, "primitives: content_hash, so the same primitive is not stored twice", _add_content_hash),
 ]
+
 
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 """The schema version this primlib writes and reads."""

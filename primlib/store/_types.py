@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PrimitiveInfo", "Primitive", "Bank"]
+__all__ = ["PrimitiveInfo", "Primitive", "Bank", "AddResult"]
 
 
 @dataclass(frozen=True)
@@ -193,3 +193,26 @@ class Bank:
             f"Bank(machine={self.machine!r}, {len(self)} primitives, "
             f"{int(self.offsets[-1])} samples, dt={self.dt})"
         )
+
+
+@dataclass(frozen=True)
+class AddResult:
+    """What a batch write did: the id each item is stored under, and which were there already.
+
+    Attributes
+    ----------
+    ids : tuple of int
+        Per item, in order: its new id, or for a duplicate the id of the identical primitive
+        already stored (or written earlier in the same batch).
+    duplicates : tuple of int
+        Positions (in the batch) of the items that were not written because an identical
+        primitive (same machine, path and signal) was stored already.
+    """
+
+    ids: tuple[int, ...]
+    duplicates: tuple[int, ...] = ()
+
+    @property
+    def added(self) -> int:
+        """How many primitives were written."""
+        return len(self.ids) - len(self.duplicates)

@@ -1,4 +1,4 @@
-"""warm_start / learn_signal through a real (in-memory) Library and the real matcher."""
+"""WarmStarter: warm start and learn through a real (in-memory) Library and the real matcher."""
 
 from __future__ import annotations
 
@@ -9,15 +9,9 @@ import pytest
 
 from primlib import NoMatchError
 from primlib.nurbs import Trajectory
+from primlib.pipeline import Library, WarmStart, find_versions
 from primlib.plant import Machine, invert
-from primlib.splice import (
-    WarmStart,
-    find_versions,
-    learn_signal,
-    refine_machine,
-    warm_start,
-)
-from primlib.store import Library
+from primlib.splice import refine_machine
 
 ROOT = Path(__file__).resolve().parents[1]
 DT = 0.005
@@ -80,7 +74,7 @@ def test_warm_start_of_new_path_from_two_pieces(lib, xyz):
     b = _wave(1.2)
     path = np.vstack([a, (b + a[-1] - b[0])[1:]])
     traj = Trajectory.from_samples(path, DT)
-    ws = warm_start(lib, traj, "xyz", 0.005)
+    ws = lib.warm_start(traj, "xyz", 0.005)
     n = round(traj.duration / DT) + 1
     assert ws.u.shape == (n, 3) and ws.t.shape == (n,)
     assert len(ws.bands) == len(ws.match.segments) - 1
@@ -124,7 +118,7 @@ def test_versions_and_eq20_are_used(xyz):
     assert find_versions(bank, 0) == [1]
     assert find_versions(bank, 2) == []
     traj = Trajectory.from_samples(_arc(1.4), DT)
-    ws = warm_start(lib, traj, "xyz", 0.01, refine=False)
+    ws = lib.warm_start(traj, "xyz", 0.01, refine=False)
     assert ws.methods == ("direct",)
     ref = traj.sample(DT)
     err = np.sqrt(np.mean((xyz.simulate(ws.u) - (ref - ref[0])) ** 2))
@@ -132,12 +126,12 @@ def test_versions_and_eq20_are_used(xyz):
     assert err < 1e-3 * np.sqrt(np.mean((ref - ref[0]) ** 2))
 
 
-def test_learn_signal_warm_and_cold(lib, xyz):
+def test_learn_warm_and_cold(lib, xyz):
     traj = Trajectory.from_samples(_arc(1.1), DT)
     ref = traj.sample(DT)
     ref = ref - ref[0]
     for cold in (False, True):
-        u = learn_signal(lib, traj, "xyz", iterations=3, cold=cold)
+        u = lib.learn(traj, "xyz", iterations=3, cold=cold, contour=False).u
         assert u.shape == ref.shape
         assert np.sqrt(np.mean((xyz.simulate(u) - ref) ** 2)) < 1e-3
 
@@ -147,7 +141,7 @@ def test_warm_start_needs_primitives(xyz):
     lib.add_machine(xyz)
     traj = Trajectory.from_samples(_arc(1.0), DT)
     with pytest.raises(NoMatchError):
-        warm_start(lib, traj, "xyz", 0.01)
+        lib.warm_start(traj, "xyz", 0.01)
 
 
 def test_warm_start_on_the_pid_stage_holds_the_offset():
@@ -162,7 +156,7 @@ def test_warm_start_on_the_pid_stage_holds_the_offset():
     b = (_wave(2.5)[:, :2] * [1.0, 0.0]) @ rz.T
     path = np.vstack([a, (b + a[-1] - b[0])[1:]])
     traj = Trajectory.from_samples(path, DT)
-    ws = warm_start(lib, traj, "xy-pdccilc", 0.01)
+    ws = lib.warm_start(traj, "xy-pdccilc", 0.01)
     ref = traj.sample(DT)
     ref = ref - ref[0]
     warm = np.sqrt(np.mean((m.simulate(ws.u, ref) - ref) ** 2))
@@ -210,12 +204,12 @@ def test_residual_correction_beats_the_model_inverse_on_a_different_machine(xyz)
         return np.sqrt(np.mean((true.simulate(u) - ref) ** 2))
 
     inverse = invert(xyz, ref)
-    warm = warm_start(lib, traj, "xyz", 0.005, refine=False)
+    warm = lib.warm_start(traj, "xyz", 0.005, refine=False)
     assert rms(warm.u) < rms(inverse) / 1.5
     # the correction adds no chatter: near-Nyquist input content no more than the stored
     # inputs' own (the machine's exact inverses start with a kick its lag needs)
     stored = max(float(_hf(u).max()) for _, u, _, _ in items)
     assert float(_hf(warm.u).max()) <= stored
     # refined on the library's pairs the model is the machine's family: far better still
-    refined = warm_start(lib, traj, "xyz", 0.005)
+    refined = lib.warm_start(traj, "xyz", 0.005)
     assert rms(refined.u) < rms(warm.u) / 20

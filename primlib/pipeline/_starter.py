@@ -1,0 +1,268 @@
+"""The pipeline's one owner: match -> warm start -> learn -> store back, over one store.
+
+:class:`WarmStarter` reads a machine's bank from a :class:`~primlib.store.Store`, hands it to
+the matcher (:func:`primlib.match.match_path`), carries the matched primitives' stored
+inputs over (:func:`primlib.splice.splice`) into a first-iteration input, runs ILC from it
+(:func:`~primlib.pipeline.learn_on_model`), and stores the converged input back. Its caches
+are attributes of the object, never module globals: the refined models (one least-squares
+fit per machine model and primitive set). Data flows one way: the store never calls back.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Sequence
+from os import PathLike
+from typing import Any
+
+import numpy as np
+
+from primlib._errors import NoMatchError
+from primlib.match import Match, default_eps, match_path
+from primlib.nurbs import Trajectory
+from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
+from primlib.pipeline._warm import WarmStart, stored_signals
+from primlib.plant import Machine
+from primlib.splice import RefinedModel, refine_machine, splice
+from primlib.store import Bank, Store
+
+__all__ = ["WarmStarter", "as_trajectory"]
+
+# primitives a refinement fits on (matched ones first)
+_REFINE_MAX = 24
+
+
+def as_trajectory(path: Trajectory | str | PathLike) -> Trajectory:
+    """The path itself, or a path CSV file read and fitted."""
+    if isinstance(path, Trajectory):
+        return path
+    return Trajectory.from_csv(path)
+
+
+def _refined_note(machine: Machine, model: RefinedModel) -> str:
+    th = ", ".join(
+        f"{a}: gain {g:.4g}, time scale {c:.4g}, lag {tau * 1e3:.3g} ms"
+        for a, (g, c, tau) in zip(machine.axes, model.theta, strict=True)
+    )
+    return f"model refined on the library's stored pairs: {th}"
+
+
+class WarmStarter:
+    """Match, warm start and learn against the primitives of one store.
+
+    Parameters
+    ----------
+    store : Store
+        Where the machines and primitives are read (and learned inputs stored).
+    refine_cache : int, default 16
+        Refined models kept (least recently used dropped first).
+
+    Attributes
+    ----------
+    refined : OrderedDict
+        The refined-model cache: (machine definition, primitive ids) -> RefinedModel. Ids
+        are never reused within a store and stored primitives never change, so the key
+        names the data.
+    """
+
+    def __init__(self, store: Store, *, refine_cache: int = 16) -> None:
+        self.store = store
+        self.refine_cache = int(refine_cache)
+        self.refined: OrderedDict[tuple, RefinedModel] = OrderedDict()
+
+    # ------------------------------------------------------------------ match
+    def match(
+        self, path: Trajectory | str, machine: str, eps: float | None = None, **kw: Any
+    ) -> Match:
+        """Cut ``path`` into segments matching the machine's primitives.
+
+        Parameters
+        ----------
+        path : Trajectory or str
+            The new path (a CSV file name is read).
+        machine : str
+        eps : float, optional
+            Kabsch RMSD tolerance (user units, > 0); default
+            :func:`primlib.match.default_eps` of the path.
+        **kw
+            ``rotation``, ``time_scale``, ``min_step``, ``search``, ``options`` of
+            :func:`primlib.match.match_path`.
+
+        Returns
+        -------
+        Match
+        """
+        traj = as_trajectory(path)
+        e = default_eps(traj) if eps is None else eps
+        return match_path(self.store, traj, machine=machine, eps=e, **kw)
+
+    # ------------------------------------------------------------------ refine
+    def refined_model(self, machine: Machine, bank: Bank, ids: Sequence[int]) -> RefinedModel:
+        """The model refined on the matched primitives, plus others of the bank up to 24.
+
+        Others are added so that an axis the matched pieces do not move (a rotation can
+        move it on the new path) is refined too. Cached on this object.
+        """
+        all_ids = [int(i) for i in np.asarray(bank.ids)]
+        chosen = [i for i in ids if i in all_ids]
+        chosen += [i for i in all_ids if i not in chosen][: max(0, _REFINE_MAX - len(chosen))]
+        key = (repr(machine.to_dict()), tuple(sorted(chosen)))
+        hit = self.refined.get(key)
+        if hit is not None:
+            self.refined.move_to_end(key)
+            return hit
+        stored = stored_signals(bank, chosen, versions=False)
+        model = refine_machine(
+            machine, [(s.signal, s.points - s.points[0]) for s in stored.values()]
+        )
+        self.refined[key] = model
+        while len(self.refined) > self.refine_cache:
+            self.refined.popitem(last=False)
+        return model
+
+    # ------------------------------------------------------------------ warm start
+    def warm_start(
+        self,
+        path: Trajectory | str,
+        machine: str,
+        eps: float | None = None,
+        *,
+        band: float | None = None,
+        method: str = "auto",
+        refine: bool = True,
+        correction: str = "error",
+        match: Match | None = None,
+        **kw: Any,
+    ) -> WarmStart:
+        """First-iteration ILC input for a new path from the machine's primitives.
+
+        Parameters
+        ----------
+        path : Trajectory or str
+            The new path (a CSV file name is read).
+        machine : str
+            Machine name; only its primitives are used.
+        eps : float, optional
+            RMSD tolerance of the match (user units, > 0); default
+            :func:`primlib.match.default_eps` of the path.
+        band, method : optional
+            Transition band width (s) and time-scaling method of :func:`primlib.splice.splice`.
+        refine : bool
+            Transform on the model refined on stored (input, path) pairs
+            (:meth:`refined_model`): they say how the real machine differs from its model.
+        correction : str
+            Residual correction of :func:`primlib.splice.splice` (default ``"error"``).
+        match : Match, optional
+            A match already computed for this path and machine.
+        **kw
+            Passed to :meth:`match`.
+
+        Returns
+        -------
+        WarmStart
+
+        Raises
+        ------
+        NoMatchError, NotFoundError
+            The machine has no primitives; an unknown machine.
+        """
+        traj = as_trajectory(path)
+        m = self.store.machine(machine)
+        if match is None:
+            match = self.match(traj, machine, eps, **kw)
+        ids = sorted({s.primitive for s in match.segments if s.primitive is not None})
+        bank = self.store.bank(machine)
+        stored = stored_signals(bank, ids) if ids else {}
+        model = None
+        if refine and stored and not m.feedback:
+            model = self.refined_model(m, bank, ids)
+        pts = traj.sample(m.dt)
+        res = splice(
+            m if model is None else model.machine,
+            pts,
+            traj.duration,
+            match.segments,
+            stored,
+            band=band,
+            method=method,
+            inverse_machine=m,
+            correction=correction,
+        )
+        return WarmStart(
+            u=res.u,
+            t=np.arange(pts.shape[0]) * m.dt,
+            match=match,
+            bands=res.bands,
+            sample_segment=res.sample_segment,
+            sources=res.sources,
+            methods=res.methods,
+            notes=res.notes if model is None else (*res.notes, _refined_note(m, model)),
+            model=model,
+            spliced=res.spliced,
+        )
+
+    # ------------------------------------------------------------------ learn
+    def learn(
+        self,
+        path: Trajectory | str,
+        machine: str,
+        *,
+        cold: bool = False,
+        iterations: int = 20,
+        eps: float | None = None,
+        band: float | None = None,
+        law: str = "norm-optimal",
+        tol: float | None = None,
+        contour: bool = True,
+    ) -> LearnRun:
+        """Warm start (unless ``cold``), then ILC on the machine's model.
+
+        Parameters
+        ----------
+        path : Trajectory or str
+        machine : str
+        cold : bool
+            Start from zero instead of the warm start.
+        iterations : int
+            ILC trials at most.
+        eps : float, optional
+            Match tolerance (default :func:`primlib.match.default_eps`).
+        band : float, optional
+            Transition band width, seconds.
+        law : str
+            One of :data:`primlib.pipeline.LAWS`.
+        tol : float, optional
+            Stop when the RMS error falls below this (user units).
+        contour : bool
+            Also compute the RMS contour error per trial.
+
+        Returns
+        -------
+        LearnRun
+            Where the machine has no primitives (or nothing to start from), the run starts
+            from zero and says so in ``notes``.
+        """
+        traj = as_trajectory(path)
+        m = self.store.machine(machine)
+        check_law(law, m)
+        pts = traj.sample(m.dt)
+        ref = pts - pts[0]
+        notes: list[str] = []
+        ws = None
+        if not cold:
+            try:
+                ws = self.warm_start(traj, machine, eps, band=band)
+            except NoMatchError as exc:
+                notes.append(f"no warm start ({exc}); starting from zero")
+        res = learn_on_model(
+            m,
+            ref,
+            None if ws is None else ws.u,
+            law=law,
+            iterations=int(iterations),
+            tol=tol,
+            contour=contour,
+        )
+        crms = None if res.rms_contour is None else [float(x) for x in res.rms_contour]
+        t = np.arange(pts.shape[0]) * m.dt
+        return LearnRun(m, ref, t, ws, res, crms, tuple(notes))
