@@ -15,7 +15,7 @@ from click.testing import CliRunner
 from primlib.cli import main
 from primlib.io import read_signal_csv, write_path_csv, write_signal_csv
 from primlib.plant import Machine
-from primlib.store import Library
+from primlib.store import Store
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "machines"
 START = np.array([12.0, -3.0, 40.0])
@@ -50,7 +50,7 @@ def test_identify_writes_a_machine_that_machine_add_reads(experiment, tmp_path):
     db = tmp_path / "lib.duckdb"
     added = run("machine", "add", out, db=db)
     assert added.exit_code == 0, added.output
-    with Library(db, read_only=True) as lib:
+    with Store(db, read_only=True) as lib:
         m = lib.machine("stage")
     true = Machine.from_json(DATA / "xyz.json")
     for a in "xyz":

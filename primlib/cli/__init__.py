@@ -71,6 +71,7 @@ def _register() -> None:
 _COMMAND_MODULES: list[str] = [
     "_reproduce",
     "_library",
+    "_ingest",
     "_learn",
     "_reproduce_pdccilc",
     "_reproduce_cee",

@@ -11,6 +11,7 @@ import json
 import re
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
@@ -18,7 +19,13 @@ import numpy as np
 from primlib._errors import InputError
 from primlib.cli import main
 from primlib.cli._output import FIGURE_FORMATS, check_output
-from primlib.pipeline import LAWS, LearnRun
+from primlib.pipeline import LAWS
+
+if TYPE_CHECKING:
+    from primlib.pipeline import LearnRun
+
+# Commands import the computing packages when they run, so `primlib --help` and `primlib
+# list` do not load scipy, the matcher and the learners.
 
 __all__ = ["learn", "example"]
 

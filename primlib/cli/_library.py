@@ -1,32 +1,32 @@
-"""Library commands: ``machine add/list/remove``, ``ingest``, ``list``, ``show``, ``remove``.
+"""Library commands: ``machine add/list/remove``, ``list``, ``show``, ``remove``.
 
 A thin layer: files are read by :mod:`primlib.io`, paths fitted by
 :class:`primlib.nurbs.Trajectory`, and everything is stored by :class:`primlib.store.Store`
-(``ingest --learn`` learns through :class:`primlib.pipeline.Library`).
-``ingest`` reads and checks every file before its one write transaction, so one bad file
-means nothing is written.
+(``match`` and ``learn`` open a :class:`primlib.pipeline.Library`). ``ingest`` lives in
+:mod:`primlib.cli._ingest`.
 """
 
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
-from typing import Any
+import time
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
 
-from primlib._errors import InputError
+from primlib._errors import LibraryBusyError
 from primlib.cli import main
-from primlib.pipeline import Library
-from primlib.store import Store
+from primlib.cli._output import TABLE_FORMATS, check_output
 
-__all__ = ["machine", "ingest", "list_primitives", "show", "remove"]
+if TYPE_CHECKING:
+    from primlib.pipeline import Library
+    from primlib.store import Store
 
-# Relative tolerance between a CSV file's time step and the machine's dt (the CSV reader's
-# own tolerance on uniform spacing).
-_DT_RTOL = 1e-6
+# Commands import the computing packages when they run, so `primlib --help` and `primlib
+# list` do not load scipy, the matcher and the learners.
+
+__all__ = ["machine", "list_primitives", "show", "remove"]
 
 
 def _db(ctx: click.Context) -> str:
@@ -35,12 +35,39 @@ def _db(ctx: click.Context) -> str:
 
 def _open(ctx: click.Context, *, read_only: bool = False, create: bool = False) -> Store:
     """The store of ``--db`` (persistence only)."""
+    from primlib.store import Store
+
     return Store(_db(ctx), read_only=read_only, create=create)
 
 
 def _open_library(ctx: click.Context, *, read_only: bool = False) -> Library:
     """The library of ``--db`` with the pipeline (match, warm start, learn)."""
+    from primlib.pipeline import Library
+
     return Library(_db(ctx), read_only=read_only, create=False)
+
+
+def _open_waiting(db: str, wait: float, **kw: Any) -> Store:
+    """Open the store, retrying while another process holds it, for up to ``wait`` seconds.
+
+    Raises
+    ------
+    LibraryBusyError
+        Still busy after ``wait`` seconds (at once for ``wait = 0``).
+    """
+    from primlib.store import Store
+
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            return Store(db, **kw)
+        except LibraryBusyError as exc:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                if wait > 0:
+                    raise LibraryBusyError(f"{exc} (waited {wait:g} s)") from None
+                raise
+            time.sleep(min(0.2, left))
 
 
 def _table(headers: list[str], rows: list[list[str]], right: set[int]) -> str:
@@ -136,165 +163,6 @@ def machine_remove(ctx: click.Context, name: str, with_primitives: bool) -> None
     click.echo(f"removed machine '{name}'{extra} from {_db(ctx)}")
 
 
-# ---------------------------------------------------------------------------- ingest
-def _signal_for(path: Path) -> Path:
-    # glyph-a.csv -> glyph-a.signal.csv beside it
-    return path.with_name(f"{path.stem}.signal.csv")
-
-
-def _without_sibling_signals(paths: tuple[str, ...]) -> tuple[str, ...]:
-    # `primlib ingest folder/*.csv` names glyph.csv and glyph.signal.csv: the second is the
-    # first one's signal, not a path.
-    given = {Path(p).resolve() for p in paths}
-    return tuple(
-        p
-        for p in paths
-        if not (
-            Path(p).name.endswith(".signal.csv")
-            and Path(p).with_name(Path(p).name[: -len(".signal.csv")] + ".csv").resolve() in given
-        )
-    )
-
-
-def _read_one(
-    path: Path, signal: Path | None, m: Any, learn: bool
-) -> tuple[Any, np.ndarray | None]:
-    """Read, check and fit one path (and read its signal); errors name the file."""
-    from primlib.io import read_path_csv, read_signal_csv
-    from primlib.nurbs import Trajectory
-
-    t, points = read_path_csv(path)
-    dt = (t[-1] - t[0]) / (len(t) - 1)
-    if abs(dt - m.dt) > _DT_RTOL * m.dt:
-        raise InputError(
-            f"{path}: expected samples at the dt of machine '{m.name}' ({m.dt:g} s), "
-            f"got dt = {dt:.9g} s"
-        )
-    if points.shape[1] != m.dim:
-        raise InputError(
-            f"{path}: expected a {m.dim}-D path for machine '{m.name}' (axes "
-            f"{', '.join(m.axes)}), got {points.shape[1]} coordinates"
-        )
-    u = None
-    if not learn:
-        if signal is None:
-            signal = _signal_for(path)
-            if not signal.exists():
-                raise InputError(
-                    f"{path}: expected its signal in {signal} (or --signal FILE, or --learn), "
-                    "got no such file"
-                )
-        _, u = read_signal_csv(signal, t=t)
-        if u.shape[1] != m.dim:
-            raise InputError(
-                f"{signal}: expected {m.dim} signal columns for machine '{m.name}', "
-                f"got {u.shape[1]}"
-            )
-    try:
-        trajectory = Trajectory.from_samples(points, m.dt)
-    except InputError as exc:
-        raise InputError(f"{path}: {exc}") from None
-    return trajectory, u
-
-
-@main.command()
-@click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option(
-    "--machine", "-m", "machine_name", required=True, help="Machine the signals belong to."
-)
-@click.option(
-    "--signal",
-    "-s",
-    "signals",
-    multiple=True,
-    type=click.Path(dir_okay=False),
-    help="Signal CSV (t,ux,uy[,uz]) for a path; give one per PATH, in order. "
-    "Without any, each PATH's signal is read from <stem>.signal.csv beside it "
-    "(glyph.csv -> glyph.signal.csv).",
-)
-@click.option(
-    "--learn", is_flag=True, help="Learn each signal by ILC on the machine's model instead."
-)
-@click.option(
-    "--iterations",
-    type=click.IntRange(min=1),
-    default=30,
-    show_default=True,
-    help="ILC trials with --learn.",
-)
-@click.option("--name", help="Name of the primitive (one PATH only); default: the file's stem.")
-@click.pass_context
-def ingest(
-    ctx: click.Context,
-    paths: tuple[str, ...],
-    machine_name: str,
-    signals: tuple[str, ...],
-    learn: bool,
-    iterations: int,
-    name: str | None,
-) -> None:
-    """Store paths (CSV: t,x,y[,z]) with their learned signals as primitives of a machine.
-
-    Without --signal, a PATH named <stem>.signal.csv whose <stem>.csv is also
-    given is taken as that path's signal, so a folder's *.csv can be ingested at
-    once. Every file is read, checked and fitted before anything is written; then all of them go
-    in as one transaction, so a single bad file leaves the library unchanged. Paths must be
-    sampled at the machine's dt; each signal must lie on its path's time grid.
-
-    \b
-    primlib ingest glyph.csv --signal glyph-u.csv --machine xyz
-    primlib ingest data/library/*.csv --machine xyz   # each with <stem>.signal.csv
-    primlib ingest glyph.csv --learn --machine xyz    # learn the signal by ILC
-    """
-    if learn and signals:
-        raise click.UsageError("--learn and --signal are mutually exclusive")
-    if not signals:
-        paths = _without_sibling_signals(paths)
-    if signals and len(signals) != len(paths):
-        raise click.UsageError(
-            f"got {len(signals)} --signal for {len(paths)} paths; give one per path, or none "
-            "to read <stem>.signal.csv beside each"
-        )
-    if name is not None and len(paths) > 1:
-        raise click.UsageError(f"--name names one primitive, got {len(paths)} paths")
-    files = [Path(p) for p in paths]
-    sigs: list[Path | None] = [Path(s) for s in signals] if signals else [None] * len(files)
-
-    # Read, check and fit every file (and learn) with the library open read-only, so other
-    # readers are not locked out meanwhile; take the write lock only for the one transaction.
-    with _open_library(ctx, read_only=True) as lib:
-        m = lib.machine(machine_name)
-        read = []
-        with click.progressbar(
-            list(zip(files, sigs, strict=True)),
-            label=f"reading {len(files)} paths",
-            file=sys.stderr,
-            hidden=len(files) < 2,
-        ) as bar:
-            for path, signal in bar:
-                read.append((path, *_read_one(path, signal, m, learn)))
-        if learn:
-            with click.progressbar(
-                read, label="learning by ILC", file=sys.stderr, hidden=len(read) < 2
-            ) as bar:
-                read = [
-                    (
-                        path,
-                        traj,
-                        lib.learn(traj, machine_name, iterations=iterations, contour=False).u,
-                    )
-                    for path, traj, _ in bar
-                ]
-    how = f" (learned by ILC, {iterations} iterations)" if learn else ""
-    items = [(traj, u, name or path.stem, f"{path}{how}") for path, traj, u in read]
-    with _open(ctx) as lib:
-        ids = lib.add_many(items, machine_name)
-    for pid, (trajectory, _, nm, _) in zip(ids, items, strict=True):
-        click.echo(f"{pid:>6}  {nm}  ({trajectory.duration:g} s)")
-    noun = "primitive" if len(ids) == 1 else "primitives"
-    click.echo(f"added {len(ids)} {noun} to machine '{machine_name}' in {_db(ctx)}")
-
-
 # ---------------------------------------------------------------------------- list/show/remove
 @main.command("list")
 @click.option("--machine", "-m", "machine_name", help="Only this machine's primitives.")
@@ -344,6 +212,8 @@ def show(
     ctx: click.Context, id: int, as_json: bool, signal_out: str | None, path_out: str | None
 ) -> None:
     """Show one primitive: metadata, its NURBS and its signal's size per axis."""
+    check_output("--signal-out", signal_out, TABLE_FORMATS)
+    check_output("--path-out", path_out, TABLE_FORMATS)
     with _open(ctx, read_only=True) as lib:
         p = lib.get(id)
         axes = lib.machine(p.machine).axes

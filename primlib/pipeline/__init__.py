@@ -12,30 +12,39 @@ Data flows one way: ``store`` reads the bank, ``match`` cuts the path, ``splice`
 the stored inputs over, ``ilc`` learns; none of them calls back into this package.
 """
 
-from primlib.pipeline._learn import (
-    ILC_LAWS,
-    LAWS,
-    MASTER_SLAVE_LAWS,
-    LearnRun,
-    check_law,
-    learn_on_model,
-)
-from primlib.pipeline._library import Library, store_learned
-from primlib.pipeline._starter import WarmStarter, as_trajectory
-from primlib.pipeline._warm import WarmStart, find_versions, stored_signals
+from __future__ import annotations
 
-__all__ = [
-    "Library",
-    "WarmStarter",
-    "WarmStart",
-    "LearnRun",
-    "learn_on_model",
-    "check_law",
-    "store_learned",
-    "as_trajectory",
-    "find_versions",
-    "stored_signals",
-    "LAWS",
-    "ILC_LAWS",
-    "MASTER_SLAVE_LAWS",
-]
+import importlib
+from typing import Any
+
+from primlib.pipeline._laws import ILC_LAWS, LAWS, MASTER_SLAVE_LAWS
+
+# public name -> module that defines it, imported on first use: the CLI lists the laws
+# without loading the matcher, the splice and the learners
+_LAZY = {
+    "Library": "primlib.pipeline._library",
+    "store_learned": "primlib.pipeline._library",
+    "WarmStarter": "primlib.pipeline._starter",
+    "as_trajectory": "primlib.pipeline._starter",
+    "WarmStart": "primlib.pipeline._warm",
+    "find_versions": "primlib.pipeline._warm",
+    "stored_signals": "primlib.pipeline._warm",
+    "LearnRun": "primlib.pipeline._learn",
+    "learn_on_model": "primlib.pipeline._learn",
+    "check_law": "primlib.pipeline._learn",
+}
+
+__all__ = [*_LAZY, "LAWS", "ILC_LAWS", "MASTER_SLAVE_LAWS"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'primlib.pipeline' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

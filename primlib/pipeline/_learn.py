@@ -13,16 +13,11 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.ilc import ILCResult, MasterSlaveResult, learn, learn_master_slave
+from primlib.pipeline._laws import LAWS, MASTER_SLAVE_LAWS
 from primlib.pipeline._warm import WarmStart
 from primlib.plant import Machine
 
-__all__ = ["LAWS", "ILC_LAWS", "MASTER_SLAVE_LAWS", "LearnRun", "learn_on_model", "check_law"]
-
-# laws of primlib.ilc.learn (any number of axes)
-ILC_LAWS = ("p", "pd", "pid", "norm-optimal")
-# laws of the master-slave PDCCILC paper: two-axis machines, primlib.ilc.learn_master_slave
-MASTER_SLAVE_LAWS = ("tdilc", "tdccilc", "pdilc", "pdccilc")
-LAWS = ILC_LAWS + MASTER_SLAVE_LAWS
+__all__ = ["LearnRun", "learn_on_model", "check_law"]
 
 
 @dataclass(frozen=True, eq=False)

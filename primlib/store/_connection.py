@@ -20,7 +20,7 @@ import duckdb
 from primlib._errors import InputError, LibraryBusyError, NotALibraryError, PrimlibError
 from primlib.store._schema import APPLICATION, SCHEMA_VERSION, migrate
 
-__all__ = ["connect", "check_schema", "transaction", "WriteCancelled"]
+__all__ = ["connect", "check_schema", "transaction", "reading", "WriteCancelled"]
 
 # Never reach for the network: a SQLite or Parquet file handed to us must fail, not trigger an
 # extension download.
@@ -82,8 +82,31 @@ def _open_error(name: str, exc: duckdb.Error) -> PrimlibError:
         )
     # The file passed the magic-byte check: it is a DuckDB file that DuckDB cannot read
     # (truncated, overwritten, a failed checksum).
+    return _damaged(name, exc)
+
+
+def _damaged(name: str, exc: duckdb.Error) -> NotALibraryError:
+    msg = str(exc)
     first = msg.splitlines()[0] if msg else type(exc).__name__
     return NotALibraryError(f"{name} is damaged: DuckDB cannot read it ({first})")
+
+
+@contextmanager
+def reading(name: str) -> Iterator[None]:
+    """Report a read that fails on the file's own bytes as a damaged library.
+
+    DuckDB reads blocks lazily, so a truncated or overwritten file can open and fail only
+    when the damaged block is read: an ``IOException`` (a short read) or, for a failed
+    block checksum, a bare ``duckdb.Error`` (no subclass says "corrupt").
+    """
+    try:
+        yield
+    except duckdb.IOException as exc:
+        raise _damaged(name, exc) from None
+    except duckdb.Error as exc:
+        if type(exc) is duckdb.Error:
+            raise _damaged(name, exc) from None
+        raise
 
 
 def connect(path: str | None, read_only: bool, create: bool) -> Any:
@@ -128,9 +151,14 @@ def _objects(con: Any) -> set[str]:
 
 def _schema_version(con: Any, name: str) -> int:
     try:
-        meta = dict(con.sql("SELECT key, value FROM meta").fetchall())
+        with reading(name):
+            rows = con.sql("SELECT key, value FROM meta").fetchall()
+    except duckdb.Error:  # a meta table of other columns
+        rows = None
+    try:
+        meta = dict(rows)
         version = int(meta.get("schema_version", ""))
-    except (duckdb.Error, ValueError, TypeError):
+    except (ValueError, TypeError):
         raise NotALibraryError(
             f"{name} is not a primlib library (its meta table is not primlib's)"
         ) from None
@@ -152,10 +180,8 @@ def check_schema(con: Any, name: str, read_only: bool) -> None:
         Foreign tables, a foreign ``meta`` table, a newer schema, an empty or older file
         opened read-only, or a file DuckDB fails to read (damaged).
     """
-    try:
+    with reading(name):
         objects = _objects(con)
-    except duckdb.Error as exc:
-        raise _open_error(name, exc) from None
     if not objects:
         if read_only:
             raise NotALibraryError(

@@ -8,6 +8,7 @@ the schema check live in :mod:`primlib.store._connection`. Matching and warm sta
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from collections.abc import Callable, Mapping, Sequence
@@ -22,12 +23,23 @@ from primlib.nurbs import Trajectory
 from primlib.plant import Machine
 from primlib.store import _machines
 from primlib.store._codec import INFO_COLUMNS, bank_from_table, flat, info_from_row
-from primlib.store._connection import check_schema, connect, transaction
+from primlib.store._connection import check_schema, connect, reading, transaction
 from primlib.store._insert import insert
 from primlib.store._types import AddResult, Bank, Primitive, PrimitiveInfo
 from primlib.store._validate import check_id
 
 __all__ = ["Store"]
+
+
+def _reads(method):
+    """A reading method: a failure on the file's own bytes reports the file as damaged."""
+
+    @functools.wraps(method)
+    def wrapper(self: Store, *args: Any, **kw: Any) -> Any:
+        with reading(self._label):
+            return method(self, *args, **kw)
+
+    return wrapper
 
 
 class Store:
@@ -153,6 +165,7 @@ class Store:
         return f"{type(self).__name__}({self._path!r}, {state})"
 
     # ------------------------------------------------------------------ machines
+    @_reads
     def machines(self) -> list[str]:
         """Names of the machines in the library, sorted."""
         return _machines.machine_names(self._db())
@@ -233,6 +246,7 @@ class Store:
         self._bank_cache.pop(name, None)
         return count
 
+    @_reads
     def machine_summaries(self) -> list[dict[str, Any]]:
         """One dict per machine: name, kind, dt, axes, primitives (count), added (UTC)."""
         return _machines.summaries(self._db())
@@ -347,6 +361,7 @@ class Store:
         )
 
     # ------------------------------------------------------------------ reading
+    @_reads
     def primitives(self, machine: str | None = None) -> list[PrimitiveInfo]:
         """Metadata of the stored primitives (no arrays), ordered by id.
 
@@ -369,6 +384,7 @@ class Store:
     def _not_found(self, id: int) -> NotFoundError:
         return NotFoundError(f"no primitive with id {id} in {self._label}")
 
+    @_reads
     def info(self, id: int) -> PrimitiveInfo:
         """Metadata of one primitive (NotFoundError if there is none with that id)."""
         id = check_id(id)
@@ -381,6 +397,7 @@ class Store:
             raise self._not_found(id)
         return info_from_row(rows[0])
 
+    @_reads
     def get(self, id: int) -> Primitive:
         """One primitive with its trajectory, points and signal.
 
@@ -417,6 +434,7 @@ class Store:
             signal=flat(table.column("signal")).reshape(-1, d),
         )
 
+    @_reads
     def signal(self, id: int) -> np.ndarray:
         """The stored input of one primitive, shape (n, d) (one indexed lookup).
 
@@ -435,6 +453,7 @@ class Store:
             raise self._not_found(id)
         return flat(table.column("signal")).reshape(-1, table.column("dim")[0].as_py())
 
+    @_reads
     def bank(self, machine: str) -> Bank:
         """All primitives of a machine as flat arrays, from one columnar query.
 
@@ -490,6 +509,7 @@ class Store:
         self._bank_cache[machine] = (key, bank)
         return bank
 
+    @_reads
     def _bank_signals(self, machine: str, ids: np.ndarray, d: int) -> np.ndarray:
         """The signals of a bank's primitives, in the bank's order (read on first use)."""
         if self._con is None:
