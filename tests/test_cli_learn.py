@@ -301,3 +301,139 @@ def test_learn_long_path_checks_convergence_without_a_dense_svd(tmp_path):
     out = json.loads(res.output)
     assert len(out["iterations"]) == 3
     assert out["iterations"][-1]["rms"] < 1e-2 * out["iterations"][0]["rms"]
+
+
+# ---------------------------------------------------------------------------- issue 12
+def _sha(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize(
+    ("plot", "message"),
+    [
+        ("nowhere/x.png", "folder {tmp}/nowhere does not exist"),
+        ("x.foo", "expected a file ending in .png"),
+    ],
+)
+def test_learn_plot_to_a_missing_folder_or_unknown_format_exits_2_before_learning(
+    setup, tmp_path, plot, message
+):
+    runner, db, new = setup
+    before = _sha(db)
+    args = ["--db", str(db), "learn", str(new), "-m", "xyz", "--ingest", "--plot"]
+    res = runner.invoke(main, [*args, str(tmp_path / plot)])
+    assert res.exit_code == 2
+    assert message.format(tmp=tmp_path) in res.stderr and res.stderr.count("\n") == 1
+    assert "iteration" not in res.stdout  # nothing was learned
+    assert _sha(db) == before
+
+
+def test_learn_law_outside_the_fixed_set_is_refused_by_its_choice(setup):
+    runner, db, new = setup
+    res = runner.invoke(main, ["--db", str(db), "learn", str(new), "-m", "xyz", "--law", "pdx"])
+    assert res.exit_code == 2
+    assert "Invalid value for '--law': 'pdx' is not one of" in res.stderr
+    assert "'norm-optimal'" in res.stderr and "'pdccilc'" in res.stderr
+
+
+def test_learn_labels_row_0_as_the_start_and_numbers_segments_from_1(setup):
+    runner, db, new = setup
+    res = runner.invoke(main, ["--db", str(db), "learn", str(new), "-m", "xyz", "-n", "2"])
+    assert res.exit_code == 0, res.output
+    lines = res.stdout.splitlines()
+    segs = [ln.strip() for ln in lines if ln.strip().startswith("segment ")]
+    assert [s.split(":")[0] for s in segs] == ["segment 1", "segment 2"]
+    rows = [ln for ln in lines if ln.strip()[:1].isdigit()]
+    assert len(rows) == 3
+    assert rows[0].rstrip().endswith("(warm start, before learning)")
+    assert not rows[1].rstrip().endswith(")")
+    cold = runner.invoke(
+        main, ["--db", str(db), "learn", str(new), "-m", "xyz", "-n", "1", "--cold"]
+    )
+    first = [ln for ln in cold.stdout.splitlines() if ln.strip()[:1].isdigit()][0]
+    assert first.rstrip().endswith("(zero input)")
+
+
+@pytest.mark.parametrize("name", ["", "a\nb"])
+def test_learn_ingest_with_an_empty_or_multi_line_name_is_refused_before_learning(setup, name):
+    runner, db, new = setup
+    before = _sha(db)
+    args = ["--db", str(db), "learn", str(new), "-m", "xyz", "--ingest", "--name", name]
+    res = runner.invoke(main, args)
+    assert res.exit_code == 2 and "--name: expected the primitive's name" in res.stderr
+    assert _sha(db) == before
+
+
+@pytest.mark.slow
+def test_learn_ingest_leaves_the_library_readable_while_it_learns(tmp_path):
+    import os
+    import subprocess
+    import sys
+    import time
+
+    from primlib import LibraryBusyError
+
+    runner, db, f = _machine_and_path(tmp_path, XYZ, "long", _arc(20.0))
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    cmd = [sys.executable, "-m", "primlib", "--db", str(db), "learn", str(f), "-m", "xyz"]
+    proc = subprocess.Popen(
+        [*cmd, "--ingest", "-n", "40", "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    # A writer on the other side would lock out every reader from the moment it opened
+    # the file; while it only reads (learning), opening for reading succeeds throughout.
+    opened = busy = 0
+    while proc.poll() is None:
+        try:
+            Store(db, read_only=True).close()
+            opened += 1
+        except LibraryBusyError:
+            busy += 1
+        time.sleep(0.05)
+    out, err = proc.communicate()
+    assert proc.returncode == 0, err
+    assert opened >= 20 and busy <= max(3, opened // 10), (opened, busy)
+    assert json.loads(out)["ingested"] is not None
+
+
+def test_example_on_a_library_whose_xyz_machine_differs_is_refused_unchanged(tmp_path):
+    spec = json.loads(XYZ.read_text())
+    spec["plants"]["x"]["num"] = [2.0]
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(spec))
+    db = tmp_path / "e.duckdb"
+    runner = CliRunner()
+    assert runner.invoke(main, ["--db", str(db), "machine", "add", str(other)]).exit_code == 0
+    before = _sha(db)
+    res = runner.invoke(
+        main,
+        [
+            "--db",
+            str(db),
+            "example",
+            "--data",
+            str(ROOT / "data"),
+            "--plot",
+            str(tmp_path / "w.png"),
+        ],
+    )
+    assert res.exit_code == 2
+    assert "machine 'xyz' there has another model than the example's" in res.stderr
+    assert res.stderr.count("\n") == 1
+    assert _sha(db) == before
+
+
+def test_example_with_an_unknown_path_names_the_example_paths(tmp_path):
+    db = tmp_path / "e.duckdb"
+    res = CliRunner().invoke(
+        main, ["--db", str(db), "example", "--data", str(ROOT / "data"), "--path", "nope"]
+    )
+    assert res.exit_code == 2
+    assert "--path: expected one of the example paths in" in res.stderr
+    assert "glyph-chain" in res.stderr and "got 'nope'" in res.stderr
+    assert "run from a primlib clone" not in res.stderr
+    assert not db.exists()

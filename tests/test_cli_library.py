@@ -381,3 +381,21 @@ def test_a_busy_library_exits_2_with_one_line(tmp_path, db):
             holder.stdin.close()
             holder.wait(timeout=30)
     assert count(db) == 1
+
+
+@pytest.mark.parametrize(
+    ("option", "target", "message"),
+    [
+        ("--signal-out", "nowhere/x.csv", "folder {tmp}/nowhere does not exist"),
+        ("--path-out", "nowhere/x.csv", "folder {tmp}/nowhere does not exist"),
+        ("--signal-out", "x.foo", "expected a file ending in .csv"),
+    ],
+)
+def test_show_output_to_a_missing_folder_or_format_exits_2_with_one_line(
+    tmp_path, db, option, target, message
+):
+    res = run(db, "show", "1", option, tmp_path / target)
+    assert res.exit_code == 2
+    assert message.format(tmp=tmp_path) in res.stderr and res.stderr.count("\n") == 1
+    assert "Traceback" not in res.output
+    assert not (tmp_path / target).exists()
