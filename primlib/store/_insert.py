@@ -125,7 +125,7 @@ def insert(
     written unless ``allow_duplicates``; the result says which. ``cancelled`` is asked just
     before the commit (see :func:`primlib.store._connection.transaction`).
     """
-    if len(items) == 0:
+    if isinstance(items, Sequence) and not isinstance(items, (str, bytes)) and len(items) == 0:
         return AddResult(())
     checked, points, offsets = _check_all(items, machine, dt, axes, single)
     d = len(axes)
