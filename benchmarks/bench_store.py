@@ -143,7 +143,8 @@ def legacy_ingest(db: Path, items, machine: Machine) -> tuple[np.ndarray, np.nda
     con.register("batch", table)
     con.execute(
         "INSERT INTO primitives SELECT id, machine, name, source, now()::TIMESTAMP, duration, "
-        "dt, dim, n_samples, degree, knots, ctrlpts, weights, points, signal FROM batch"
+        "dt, dim, n_samples, degree, knots, ctrlpts, weights, points, signal, "
+        "NULL FROM batch"  # no content hash: the data path before duplicates were detected
     )
     con.commit()
     insert = toc(t0)
@@ -221,7 +222,7 @@ def bench_executemany(folder: Path, items, machine: Machine, subset: int):
     t0 = tic()
     con.executemany(
         "INSERT INTO primitives VALUES "
-        "(?, ?, ?, ?, now()::TIMESTAMP, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        "(?, ?, ?, ?, now()::TIMESTAMP, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, NULL)",
         rows,
     )
     con.commit()

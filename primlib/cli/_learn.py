@@ -93,7 +93,7 @@ def _as_text(run: LearnRun) -> list[str]:
 
 
 def _plot(plot_file: Path, trajectory, run: LearnRun, cold: LearnRun | None) -> None:
-    from primlib.plot._warm import plot_warm_start
+    from primlib.plot import plot_warm_start
 
     plot_warm_start(
         plot_file,

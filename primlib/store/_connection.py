@@ -13,7 +13,6 @@ import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
 
 import duckdb
 
@@ -109,7 +108,7 @@ def reading(name: str) -> Iterator[None]:
         raise
 
 
-def connect(path: str | None, read_only: bool, create: bool) -> Any:
+def connect(path: str | None, read_only: bool, create: bool) -> duckdb.DuckDBPyConnection:
     """A DuckDB connection to the library file (in memory for None), checks done first.
 
     Raises
@@ -138,7 +137,7 @@ def connect(path: str | None, read_only: bool, create: bool) -> Any:
     return con
 
 
-def _objects(con: Any) -> set[str]:
+def _objects(con: duckdb.DuckDBPyConnection) -> set[str]:
     rows = con.sql(
         "SELECT table_name FROM duckdb_tables() WHERE database_name = current_database() "
         "UNION ALL SELECT view_name FROM duckdb_views() "
@@ -149,7 +148,7 @@ def _objects(con: Any) -> set[str]:
     return {row[0] for row in rows}
 
 
-def _schema_version(con: Any, name: str) -> int:
+def _schema_version(con: duckdb.DuckDBPyConnection, name: str) -> int:
     try:
         with reading(name):
             rows = con.sql("SELECT key, value FROM meta").fetchall()
@@ -169,7 +168,7 @@ def _schema_version(con: Any, name: str) -> int:
     return version
 
 
-def check_schema(con: Any, name: str, read_only: bool) -> None:
+def check_schema(con: duckdb.DuckDBPyConnection, name: str, read_only: bool) -> None:
     """Make sure the file is a primlib library this primlib reads; create or upgrade it.
 
     An empty database becomes a library; an older schema is migrated (a writer only).
@@ -209,7 +208,9 @@ def check_schema(con: Any, name: str, read_only: bool) -> None:
 
 
 @contextmanager
-def transaction(con: Any, cancelled: Callable[[], bool] | None = None) -> Iterator[Any]:
+def transaction(
+    con: duckdb.DuckDBPyConnection, cancelled: Callable[[], bool] | None = None
+) -> Iterator[duckdb.DuckDBPyConnection]:
     """One transaction: committed when the block ends, rolled back on any exception.
 
     Parameters

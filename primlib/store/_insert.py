@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import duckdb
 import numpy as np
 
 from primlib._errors import InputError
@@ -48,7 +49,9 @@ def _check_all(
     return checked, points, offsets
 
 
-def _stored_hashes(con: Any, machine: str, hashes: list[str]) -> dict[str, int]:
+def _stored_hashes(
+    con: duckdb.DuckDBPyConnection, machine: str, hashes: list[str]
+) -> dict[str, int]:
     """Hash -> smallest id among the machine's stored primitives with one of these hashes."""
     rows = con.execute(
         "SELECT content_hash, min(id) FROM primitives WHERE machine = $m "
@@ -73,7 +76,7 @@ def _duplicates(checked: list[dict[str, Any]], stored: dict[str, int]) -> dict[i
 
 
 def _write(
-    con: Any,
+    con: duckdb.DuckDBPyConnection,
     k: int,
     make_table: Callable[[np.ndarray], Any],
     direct: bool,
@@ -108,7 +111,7 @@ def _write(
 
 
 def insert(
-    con: Any,
+    con: duckdb.DuckDBPyConnection,
     items: Sequence[Sequence[Any]],
     machine: str,
     dt: float,

@@ -6,18 +6,20 @@ import json
 from datetime import UTC
 from typing import Any
 
+import duckdb
+
 from primlib._errors import InputError, NotFoundError
 from primlib.store._schema import utcnow
 
 __all__ = ["machine_names", "machine_row", "put_machine", "delete_machine", "summaries"]
 
 
-def machine_names(con: Any) -> list[str]:
+def machine_names(con: duckdb.DuckDBPyConnection) -> list[str]:
     """Names of the machines, sorted."""
     return [r[0] for r in con.sql("SELECT name FROM machines ORDER BY name").fetchall()]
 
 
-def machine_row(con: Any, name: str) -> tuple[float, list[str], str]:
+def machine_row(con: duckdb.DuckDBPyConnection, name: str) -> tuple[float, list[str], str]:
     """(dt, axes, JSON definition) of a machine; NotFoundError naming the known ones."""
     if not isinstance(name, str):
         raise InputError(f"machine: expected a machine name, got {name!r}")
@@ -31,7 +33,7 @@ def machine_row(con: Any, name: str) -> tuple[float, list[str], str]:
     return float(dt), list(axes), definition
 
 
-def _count(con: Any, name: str) -> int:
+def _count(con: duckdb.DuckDBPyConnection, name: str) -> int:
     return int(
         con.sql(
             "SELECT count(*) FROM primitives WHERE machine = $n", params={"n": name}
@@ -39,7 +41,9 @@ def _count(con: Any, name: str) -> int:
     )
 
 
-def put_machine(con: Any, d: dict[str, Any], replace: bool, label: str) -> str:
+def put_machine(
+    con: duckdb.DuckDBPyConnection, d: dict[str, Any], replace: bool, label: str
+) -> str:
     """Insert or replace a machine from its dictionary, inside the caller's transaction.
 
     Returns "added", "replaced" or "unchanged" (an identical definition is stored already).
@@ -77,7 +81,7 @@ def put_machine(con: Any, d: dict[str, Any], replace: bool, label: str) -> str:
     return "replaced"
 
 
-def delete_machine(con: Any, name: str, primitives: bool) -> int:
+def delete_machine(con: duckdb.DuckDBPyConnection, name: str, primitives: bool) -> int:
     """Delete a machine (and, when asked, its primitives) inside the caller's transaction."""
     count = _count(con, name)
     if count and not primitives:
@@ -90,7 +94,7 @@ def delete_machine(con: Any, name: str, primitives: bool) -> int:
     return count
 
 
-def summaries(con: Any) -> list[dict[str, Any]]:
+def summaries(con: duckdb.DuckDBPyConnection) -> list[dict[str, Any]]:
     """One dict per machine: name, kind, dt, axes, primitives (count), added (UTC)."""
     rows = con.sql(
         "SELECT m.name, m.kind, m.dt, m.axes, count(p.id), m.added FROM machines m "

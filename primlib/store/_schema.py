@@ -37,6 +37,7 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
+import duckdb
 import numpy as np
 import pyarrow as pa
 
@@ -50,7 +51,7 @@ APPLICATION = "primlib"
 Migration = tuple[int, str, "str | Callable[[Any], None]"]
 
 
-def _add_content_hash(con: Any) -> None:
+def _add_content_hash(con: duckdb.DuckDBPyConnection) -> None:
     """Version 3: the ``content_hash`` column, computed for the rows already stored."""
     con.execute("ALTER TABLE primitives ADD COLUMN content_hash VARCHAR")
     table = con.sql("SELECT id, machine, dim, points, signal FROM primitives").to_arrow_table()
@@ -144,7 +145,9 @@ def check_migrations(migrations: list[Migration]) -> None:
         raise ValueError(f"migrations must be numbered 1, 2, ... in order, got {versions}")
 
 
-def migrate(con: Any, current: int, migrations: list[Migration] | None = None) -> list[int]:
+def migrate(
+    con: duckdb.DuckDBPyConnection, current: int, migrations: list[Migration] | None = None
+) -> list[int]:
     """Apply the migrations above ``current``, in order, one transaction each.
 
     Parameters

@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
 from typing import Any
 
+import duckdb
 import numpy as np
 import pyarrow as pa
 
@@ -102,7 +103,7 @@ class Store:
         self._read_only = bool(read_only)
         self._machines_cache: dict[str, tuple[str, Machine]] = {}
         self._bank_cache: dict[str, tuple[tuple, Bank]] = {}
-        self._con: Any = None
+        self._con: duckdb.DuckDBPyConnection = None
         self._con = connect(self._path, self._read_only, create)
         try:
             check_schema(self._con, self._label, self._read_only)
@@ -137,12 +138,12 @@ class Store:
         rows = self._db().sql("SELECT version, description, applied FROM migrations ORDER BY 1")
         return [(v, d, t.replace(tzinfo=UTC)) for v, d, t in rows.fetchall()]
 
-    def _db(self) -> Any:
+    def _db(self) -> duckdb.DuckDBPyConnection:
         if self._con is None:
             raise InputError(f"{self._label} is closed")
         return self._con
 
-    def _writable(self) -> Any:
+    def _writable(self) -> duckdb.DuckDBPyConnection:
         con = self._db()
         if self._read_only:
             raise InputError(f"{self._label} is open read-only; open it for writing to change it")

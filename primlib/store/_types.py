@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from primlib.nurbs import Trajectory
+
 __all__ = ["PrimitiveInfo", "Primitive", "Bank", "AddResult"]
 
 
@@ -76,7 +78,7 @@ class Primitive(PrimitiveInfo):
         The learned input on the same grid.
     """
 
-    trajectory: Any
+    trajectory: Trajectory
     points: np.ndarray
     signal: np.ndarray
 
@@ -175,10 +177,8 @@ class Bank:
         """Time grid of primitive i, shape (n_i,)."""
         return np.arange(self.offsets[i + 1] - self.offsets[i]) * self.dt
 
-    def trajectory(self, i: int) -> Any:
+    def trajectory(self, i: int) -> Trajectory:
         """The NURBS path of primitive i, a :class:`primlib.nurbs.Trajectory`."""
-        from primlib.nurbs import Trajectory
-
         c0, c1 = self.ctrl_offsets[i], self.ctrl_offsets[i + 1]
         return Trajectory.from_definition(
             int(self.degrees[i]),
