@@ -186,7 +186,13 @@ def test_ctrl_c_during_ingest_leaves_nothing_or_everything_and_says_which(
 ):
     cmd = [sys.executable, "-m", "primlib", "--db", str(db), "ingest", *map(str, many), "-m", "xyz"]
     proc = subprocess.Popen(
-        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env()
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=_env(),
+        # as from a terminal: a test run in the background inherits SIGINT ignored
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     # the command has started once it reports reading (Ctrl-C while Python itself starts
     # up is the interpreter's business, not primlib's)
@@ -198,6 +204,8 @@ def test_ctrl_c_during_ingest_leaves_nothing_or_everything_and_says_which(
     err = first + err
     assert "Traceback" not in err and "Aborted!" not in err, err
     stored = len(names(db))
+    if delay == 0.0:  # still reading 30 files: nothing can have been written
+        assert proc.returncode == 130, (out, err)
     if proc.returncode == 130:
         assert stored == 0
         assert f"Interrupted: nothing was added to {db}" in err

@@ -106,7 +106,9 @@ def _read_one(
 def _interrupt_deferred() -> Iterator[threading.Event]:
     """Hold Ctrl-C (SIGINT) while the block runs; the event says whether one arrived."""
     arrived = threading.Event()
-    if threading.current_thread() is not threading.main_thread():
+    main_thread = threading.current_thread() is threading.main_thread()
+    # an ignored SIGINT (nohup, a background job) stays ignored: it must not cancel a write
+    if not main_thread or signals_module.getsignal(signals_module.SIGINT) == signals_module.SIG_IGN:
         yield arrived
         return
     previous = signals_module.signal(signals_module.SIGINT, lambda *_: arrived.set())
