@@ -4,3 +4,8 @@ Each study is a pure function returning plain data (dicts of floats and lists) t
 prints as JSON and ``primlib.plot`` draws; where an honest reproduction disagrees with the
 paper, the study's module docstring says so and why.
 """
+
+from primlib.reproduce._pdccilc import PAPER as PDCCILC_PAPER
+from primlib.reproduce._pdccilc import PdccilcStudy, pdccilc_study
+
+__all__ = ["PDCCILC_PAPER", "PdccilcStudy", "pdccilc_study"]
