@@ -12,12 +12,8 @@ from click.testing import CliRunner
 from primlib._errors import InputError
 from primlib.cli import main
 from primlib.plant import Machine
-from primlib.reproduce._pdccilc import (
-    CONTOURS,
-    contour_reference,
-    paper_machine,
-    pdccilc_study,
-)
+from primlib.reproduce import pdccilc_study
+from primlib.reproduce._pdccilc import CONTOURS, contour_reference, paper_machine
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "machines"
 
@@ -108,3 +104,26 @@ def test_cli_table_and_bad_option():
     bad = runner.invoke(main, ["reproduce", "pdccilc", "--iterations", "0"])
     assert bad.exit_code == 2
     assert "--iterations" in bad.output
+
+
+def test_reproduce_pdccilc_prints_progress_on_stderr():
+    # 12 cases of about a second each: the user sees them counted, stdout stays JSON
+    result = CliRunner().invoke(
+        main, ["reproduce", "pdccilc", "--iterations", "1", "--no-convergence", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    lines = result.stderr.splitlines()
+    assert lines == [f"pdccilc cases (contour x law): {k}/12" for k in range(1, 13)]
+    json.loads(result.stdout)
+
+
+def test_study_reports_progress_per_case():
+    calls = []
+    pdccilc_study(
+        iterations=1,
+        contours=("semicircle", "spiral"),
+        laws=("tdilc",),
+        convergence=False,
+        progress=lambda done, total: calls.append((done, total)),
+    )
+    assert calls == [(1, 2), (2, 2)]

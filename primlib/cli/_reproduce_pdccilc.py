@@ -6,6 +6,7 @@ import json
 
 import click
 
+from primlib.cli._progress import stderr_progress
 from primlib.cli._reproduce import reproduce, study_options
 
 __all__ = ["pdccilc"]
@@ -43,15 +44,18 @@ def pdccilc(as_json, plot_dir, iterations, q_cutoff, no_q_filter, no_convergence
     Prints the RMS contour error before and after learning, its reduction, and the lifted
     convergence figures of eqs. (29)-(30) for every law and contour.
     """
-    from primlib.reproduce._pdccilc import PAPER, pdccilc_study
+    # imported here, not at the top: the study pulls in scipy and the figures matplotlib,
+    # which `primlib --help` and every other command need not load
+    from primlib.reproduce import PDCCILC_PAPER, pdccilc_study
 
     study = pdccilc_study(
         iterations=iterations,
         q_cutoff=None if no_q_filter else q_cutoff,
         convergence=not no_convergence,
+        progress=stderr_progress("pdccilc cases (contour x law)"),
     )
     if plot_dir is not None:
-        from primlib.plot._pdccilc import plot_pdccilc
+        from primlib.plot import plot_pdccilc
 
         for path in plot_pdccilc(study, plot_dir):
             click.echo(f"wrote {path}", err=True)
@@ -78,7 +82,7 @@ def pdccilc(as_json, plot_dir, iterations, q_cutoff, no_q_filter, no_convergence
                 f"{contour:<11}{law:<9}{rms[0] * 1e3:>9.2f}{rms[-1] * 1e3:>9.2f}"
                 f"{study.reduction(contour, law) * 100:>8.1f}%{tail}{mark}"
             )
-        paper = PAPER[contour]
+        paper = PDCCILC_PAPER[contour]
         click.echo(
             f"{'':<11}paper: {paper['best']} best, {paper['reduction'] * 100:.0f} % reduction;"
             f" here: {best} best, PDCCILC {study.reduction(contour, 'PDCCILC') * 100:.1f} %"

@@ -50,10 +50,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from primlib._errors import InputError
-from primlib.ilc._check import ConvergenceWarning
-from primlib.ilc._lifted import lifted_master_slave
-from primlib.ilc._master_slave import learn_master_slave
-from primlib.ilc._ms_law import master_slave_law
+from primlib.ilc import (
+    ConvergenceWarning,
+    learn_master_slave,
+    lifted_master_slave,
+    master_slave_law,
+)
+from primlib.plant import Machine
 
 __all__ = ["CONTOURS", "PAPER", "PdccilcStudy", "contour_reference", "pdccilc_study"]
 
@@ -155,6 +158,7 @@ def pdccilc_study(
     contours=CONTOURS,
     laws=tuple(LAW_NAMES),
     convergence: bool = True,
+    progress=None,
 ) -> PdccilcStudy:
     """Run the paper's simulation study (§3.3) and its convergence check (§3.2).
 
@@ -171,6 +175,9 @@ def pdccilc_study(
     laws : sequence of str
     convergence : bool
         Compute the lifted figures (sigma_max, rho, asymptotic error).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each (contour, law) case; the CLI prints
+        it on stderr (each case takes about a second).
 
     Returns
     -------
@@ -181,6 +188,7 @@ def pdccilc_study(
     if machine is None:
         machine = paper_machine()
     references, rms, mx, final_y, final_eps, conv = {}, {}, {}, {}, {}, {}
+    total = len(contours) * len(laws)
     for c in contours:
         r = contour_reference(c, dt=machine.dt)
         r = r - r[0]
@@ -198,17 +206,9 @@ def pdccilc_study(
             final_y[c][name] = res.outputs[-1]
             final_eps[c][name] = res.contour[-1]
             if convergence:
-                ms = master_slave_law(r, machine.dt, law=law, q_cutoff=q_cutoff)
-                lifted = lifted_master_slave(ms, machine, r)
-                rho, exact = lifted.spectral_radius()
-                _, e_inf = lifted.asymptotic()
-                eps_inf = np.sum(ms.normal * e_inf, axis=1)
-                conv[c][name] = {
-                    "spectral_radius": rho,
-                    "spectral_radius_exact": exact,
-                    "max_singular_value": lifted.max_singular_value(),
-                    "asymptotic_rms_contour": float(np.sqrt(np.mean(eps_inf**2))),
-                }
+                conv[c][name] = _convergence(machine, r, law, q_cutoff)
+            if progress is not None:
+                progress(sum(len(v) for v in rms.values()), total)
     settings = {
         "machine": machine.name,
         "dt": machine.dt,
@@ -221,10 +221,23 @@ def pdccilc_study(
     return PdccilcStudy(references, rms, mx, final_y, final_eps, conv, settings)
 
 
+def _convergence(machine, r: np.ndarray, law: str, q_cutoff: float | None) -> dict:
+    """The lifted figures of one law on one contour (eqs. 29-32)."""
+    ms = master_slave_law(r, machine.dt, law=law, q_cutoff=q_cutoff)
+    lifted = lifted_master_slave(ms, machine, r)
+    rho, exact = lifted.spectral_radius()
+    _, e_inf = lifted.asymptotic()
+    eps_inf = np.sum(ms.normal * e_inf, axis=1)
+    return {
+        "spectral_radius": rho,
+        "spectral_radius_exact": exact,
+        "max_singular_value": lifted.max_singular_value(),
+        "asymptotic_rms_contour": float(np.sqrt(np.mean(eps_inf**2))),
+    }
+
+
 def paper_machine():
     """The two-axis stage of eq. (33) in the PID loops of Table 1 (dt 0.005 s)."""
-    from primlib.plant import Machine
-
     return Machine(
         "xy-pdccilc",
         DT,
