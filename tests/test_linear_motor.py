@@ -7,7 +7,6 @@ import pytest
 from scipy.optimize import brentq
 
 from primlib import InputError
-from primlib.io._machine import read_machine
 from primlib.plant import LinearMotor, Machine
 
 JSON = Path(__file__).resolve().parents[1] / "data" / "machines" / "linear-motor.json"
@@ -22,7 +21,7 @@ def spec(**motor):
 
 
 def test_json_is_table1_and_dispatches_by_kind():
-    m = read_machine(JSON)
+    m = Machine.from_json(JSON)
     assert isinstance(m, LinearMotor) and m.kind == "linear-motor"
     assert m.axes == ("x", "y") and m.dim == 2
     x, y = m.motors["x"], m.motors["y"]

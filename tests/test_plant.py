@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -188,18 +189,23 @@ def test_bundled_machines_round_trip(name, tmp_path):
     assert Machine.from_dict(json.loads(out.read_text())) == m
 
 
-def test_io_exports_read_and_write_machine(tmp_path):
-    from primlib.io import read_machine, write_machine
+def test_io_reads_and_writes_machine_json_as_dicts(tmp_path):
+    # io knows files and JSON, plant knows machines: no import cycle between them
+    from primlib.io import read_machine_json, write_machine_json
 
     m = Machine.from_json(DATA / "xy-pdccilc.json")
     out = tmp_path / "m.json"
-    write_machine(out, m)
-    assert read_machine(out) == m
+    write_machine_json(out, m.to_dict())
+    assert read_machine_json(out) == m.to_dict()
+    assert Machine.from_json(out) == m
     with pytest.raises(InputError, match=r"missing\.json: expected a machine JSON file, got no"):
-        read_machine(tmp_path / "missing.json")
+        read_machine_json(tmp_path / "missing.json")
     (tmp_path / "bad.json").write_text("{", encoding="utf-8")
     with pytest.raises(InputError, match=r"bad\.json: expected valid JSON, got .* at line 1"):
-        read_machine(tmp_path / "bad.json")
+        Machine.from_json(tmp_path / "bad.json")
+    (tmp_path / "list.json").write_text("[1]", encoding="utf-8")
+    with pytest.raises(InputError, match=r"list\.json: machine: expected a JSON object, got list"):
+        read_machine_json(tmp_path / "list.json")
 
 
 def test_bundled_xyz_is_eq24():
@@ -471,3 +477,104 @@ def test_random_machines_round_trip_and_match_dlsim(tf, pid):
     _, y_ref, _ = signal.dlsim((A, B, C, D, m.dt), np.column_stack([u[:, 0], 0 * u[:, 0]]))
     y = m.simulate(u)
     np.testing.assert_allclose(y[:, 0], y_ref[:, 0], rtol=0, atol=1e-9 * (1 + np.abs(y_ref).max()))
+
+
+# ---------------------------------------------------------------- issue 12: machine JSON
+def _xyz_json(**change):
+    """The bundled xyz machine's JSON with ``key__sub__leaf=value`` changes (feedback created
+    as needed)."""
+    d = json.loads((DATA / "xyz.json").read_text(encoding="utf-8"))
+    for key, value in change.items():
+        *path, leaf = key.split("__")
+        node = d
+        for p in path:
+            if node.get(p) is None:
+                node[p] = {}
+            node = node[p]
+        node[leaf] = value
+    return d
+
+
+@pytest.mark.parametrize(
+    ("case", "change", "message"),
+    [
+        (
+            "dt_1e6",
+            {"dt": 1e6},
+            r"dt: expected a sample time between 1e-07 s and 10 s, got 1e\+06 s",
+        ),
+        (
+            "dt_1e-12",
+            {"dt": 1e-12},
+            r"dt: expected a sample time between 1e-07 s and 10 s, got 1e-12",
+        ),
+        ("dt_string", {"dt": "0.005"}, r"dt: expected a sample time in seconds, got '0\.005'"),
+        ("dt_bool", {"dt": True}, r"dt: expected a sample time in seconds, got True"),
+        (
+            "num_string",
+            {"plants__x__num": ["1.066"]},
+            r"numerator of axis 'x': expected a list of numbers, got \['1\.066'\]",
+        ),
+        (
+            "den_huge",
+            {"plants__x__den": [1e300, 1.0, 0.0]},
+            r"denominator of axis 'x': expected coefficients of magnitude <= 1e\+09",
+        ),
+        (
+            "kp_string",
+            {"feedback__x__kp": "3"},
+            r"feedback kp of axis 'x': expected a number, got '3'",
+        ),
+        (
+            "kd_huge",
+            {"feedback__x__kd": 1e12},
+            r"feedback kd of axis 'x': expected a finite number of magnitude <= 1e\+09, got 1e\+12",
+        ),
+        (
+            "kind_unknown",
+            {"kind": "warp-drive"},
+            r"machine kind: expected one of .*, got 'warp-drive'",
+        ),
+    ],
+)
+def test_machine_json_with_bad_number_is_refused_naming_file_and_key(
+    tmp_path, case, change, message
+):
+    path = tmp_path / f"{case}.json"
+    path.write_text(json.dumps(_xyz_json(**change)), encoding="utf-8")
+    with pytest.raises(InputError, match=rf"^{re.escape(str(path))}: {message}") as err:
+        Machine.from_json(path)
+    assert "\n" not in str(err.value)
+
+
+def test_machine_json_dt_string_is_refused_by_machine_add_with_exit_2(tmp_path):
+    from click.testing import CliRunner
+
+    from primlib.cli import main
+
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps(_xyz_json(dt="0.005")), encoding="utf-8")
+    db = tmp_path / "lib.duckdb"
+    res = CliRunner().invoke(main, ["--db", str(db), "machine", "add", str(path)])
+    assert res.exit_code == 2
+    assert "m.json: dt: expected a sample time in seconds, got '0.005'" in res.output
+    assert not db.exists()
+
+
+def test_machine_dt_range_bounds_are_accepted():
+    for dt in (1e-7, 10.0):
+        assert Machine("m", dt, ["x"], _GOOD).dt == dt
+
+
+def test_linear_motor_json_with_string_parameter_is_refused_naming_the_key(tmp_path):
+    d = json.loads((DATA / "linear-motor.json").read_text(encoding="utf-8"))
+    d["motors"]["x"]["M"] = "0.18"
+    path = tmp_path / "motor.json"
+    path.write_text(json.dumps(d), encoding="utf-8")
+    with pytest.raises(InputError, match=r"motor\.json: motor M of axis 'x': expected a number"):
+        Machine.from_json(path)
+    d["motors"]["x"]["M"] = 0.18
+    d["length_unit"] = "1e-3"
+    path.write_text(json.dumps(d), encoding="utf-8")
+    with pytest.raises(InputError, match=r"motor\.json: length_unit: expected a number, got"):
+        Machine.from_json(path)

@@ -7,14 +7,14 @@ from click.testing import CliRunner
 
 from primlib import InputError
 from primlib.cli import main
-from primlib.io._machine import read_machine
+from primlib.plant import Machine
 from primlib.reproduce._cee_mfac import PAPER_TABLE2, cee_mfac_study, linear_motor
 
 JSON = Path(__file__).resolve().parents[1] / "data" / "machines" / "linear-motor.json"
 
 
 def test_study_machine_is_the_data_file():
-    m = read_machine(JSON)
+    m = Machine.from_json(JSON)
     assert linear_motor().motors == m.motors
     assert linear_motor().dt == m.dt and linear_motor().substeps == m.substeps
 

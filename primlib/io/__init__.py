@@ -5,7 +5,7 @@ the file (and the line) and the fault; every writer writes atomically.
 """
 
 from primlib.io._csv import read_uniform_table, write_table
-from primlib.io._machine import read_machine, write_machine
+from primlib.io._machine import read_machine_json, write_machine_json
 from primlib.io._path import read_path_csv, read_path_json, write_path_csv, write_path_json
 from primlib.io._signal import read_signal_csv, write_signal_csv
 
@@ -18,6 +18,6 @@ __all__ = [
     "write_path_json",
     "read_signal_csv",
     "write_signal_csv",
-    "read_machine",
-    "write_machine",
+    "read_machine_json",
+    "write_machine_json",
 ]

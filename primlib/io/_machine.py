@@ -1,19 +1,24 @@
-"""Machine JSON files (format in API.md): read with one-sentence errors, write atomically."""
+"""Machine JSON files (format in API.md): the file and its JSON, nothing about machines.
+
+:meth:`primlib.plant.Machine.from_json` reads the dictionary here and builds the machine
+from it, so ``io`` never imports ``plant`` (one direction: plant -> io).
+"""
 
 from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
+from typing import Any
 
 from primlib._errors import InputError
+from primlib.io._csv import write_text_atomic
 
-__all__ = ["read_machine", "write_machine"]
+__all__ = ["read_machine_json", "write_machine_json"]
 
 
-def read_machine(path: str | os.PathLike):
-    """Read a machine JSON file.
+def read_machine_json(path: str | os.PathLike) -> dict[str, Any]:
+    """Read a machine JSON file into its dictionary (checked by ``Machine.from_dict``).
 
     Parameters
     ----------
@@ -22,17 +27,15 @@ def read_machine(path: str | os.PathLike):
 
     Returns
     -------
-    Machine
-        Built by :meth:`primlib.plant.Machine.from_dict` (dispatching on ``"kind"``).
+    dict
+        The JSON object.
 
     Raises
     ------
     InputError
-        If the file is missing, unreadable, not JSON, or describes an invalid machine; the
-        message starts with the file name.
+        If the file is missing, unreadable, not JSON or not a JSON object; the message
+        starts with the file name.
     """
-    from primlib.plant import Machine
-
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -46,22 +49,14 @@ def read_machine(path: str | os.PathLike):
         raise InputError(
             f"{path}: expected valid JSON, got {exc.msg} at line {exc.lineno} column {exc.colno}"
         ) from None
-    try:
-        return Machine.from_dict(data)
-    except InputError as exc:
-        raise InputError(f"{path}: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{path}: expected valid JSON, got nesting too deep to read") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: machine: expected a JSON object, got {type(data).__name__}")
+    return data
 
 
-def write_machine(path: str | os.PathLike, machine) -> None:
-    """Write ``machine.to_dict()`` as indented JSON, atomically (temporary file + rename)."""
-    path = Path(path)
-    text = json.dumps(machine.to_dict(), indent=2) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+def write_machine_json(path: str | os.PathLike, data: dict[str, Any]) -> None:
+    """Write a machine's dictionary (``Machine.to_dict()``) as indented JSON, atomically
+    (temporary file + rename)."""
+    write_text_atomic(Path(path), json.dumps(data, indent=2) + "\n")

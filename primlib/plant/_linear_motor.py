@@ -39,7 +39,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from primlib._errors import InputError
-from primlib.plant._machine import Machine, _check_keys, _read_note, _write_note, register_kind
+from primlib.plant._machine import Machine, register_kind
+from primlib.plant._spec import check_keys, check_number, read_note, write_note
 
 __all__ = ["LinearMotor", "MOTOR_KEYS"]
 
@@ -77,14 +78,7 @@ def _validate_motor(axis: str, spec: Any) -> dict[str, float]:
                 raise InputError(f"motor of axis {axis!r}: expected parameter {key!r}, got none")
             out[key] = float(default)
             continue
-        try:
-            value = float(spec[key])
-        except (TypeError, ValueError):
-            raise InputError(
-                f"motor {key} of axis {axis!r}: expected a number, got {spec[key]!r}"
-            ) from None
-        if not math.isfinite(value):
-            raise InputError(f"motor {key} of axis {axis!r}: expected a finite number, got {value}")
+        value = check_number(spec[key], f"motor {key} of axis {axis!r}")
         if key in _POSITIVE and value <= 0:
             raise InputError(f"motor {key} of axis {axis!r}: expected a number > 0, got {value}")
         if key in _NONNEG and value < 0:
@@ -154,14 +148,11 @@ class LinearMotor(Machine):
             raise InputError(
                 f"motors: got parameters for unknown axis {unknown[0]!r} (axes are {list(axes)})"
             )
-        try:
-            length_unit = float(length_unit)
-        except (TypeError, ValueError):
+        length_unit = check_number(length_unit, "length_unit")
+        if length_unit <= 0:
             raise InputError(
-                f"length_unit: expected metres per unit, got {length_unit!r}"
-            ) from None
-        if not (math.isfinite(length_unit) and length_unit > 0):
-            raise InputError(f"length_unit: expected a number > 0, got {length_unit}")
+                f"length_unit: expected a number > 0 (metres per unit), got {length_unit}"
+            )
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)):
             raise InputError(f"substeps: expected an integer >= 1, got {substeps!r}")
         if substeps < 1:
@@ -354,7 +345,7 @@ class LinearMotor(Machine):
             raise InputError(f"machine: expected a JSON object, got {type(d).__name__}")
         if d.get("kind", cls.kind) != cls.kind:
             raise InputError(f"machine kind: expected {cls.kind!r}, got {d.get('kind')!r}")
-        _check_keys(d, _TOP_KEYS, ("name", "dt", "axes", "motors"))
+        check_keys(d, _TOP_KEYS, ("name", "dt", "axes", "motors"))
         m = cls(
             d["name"],
             d["dt"],
@@ -364,7 +355,7 @@ class LinearMotor(Machine):
             length_unit=d.get("length_unit", 1e-3),
             substeps=d.get("substeps", 4),
         )
-        return _read_note(m, d)
+        return read_note(m, d)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary; ``LinearMotor.from_dict(m.to_dict()) == m``."""
@@ -378,7 +369,7 @@ class LinearMotor(Machine):
             "motors": self.motors,
             "feedback": self.feedback,
         }
-        return _write_note(self, out)
+        return write_note(self, out)
 
     def __repr__(self) -> str:
         fb = "PID" if self.feedback else "open loop"
