@@ -33,9 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a check
 
 from _timing import median_time  # noqa: E402
 
-from primlib.ilc._lifted import lifted_master_slave  # noqa: E402
-from primlib.ilc._ms_law import master_slave_law  # noqa: E402
-from primlib.reproduce._pdccilc import contour_reference, paper_machine  # noqa: E402
+from primlib.ilc import lifted_master_slave, master_slave_law  # noqa: E402
+from primlib.reproduce import contour_reference, paper_machine  # noqa: E402
 
 
 def main() -> None:

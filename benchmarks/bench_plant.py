@@ -28,10 +28,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from _timing import median_time  # noqa: E402
 
-from primlib.ilc import check_learning, learn  # noqa: E402
-from primlib.ilc._learn import NORM_OPTIMAL_MAX_N  # noqa: E402
-from primlib.plant import Machine, max_singular_value, toeplitz_operator  # noqa: E402
-from primlib.plant._pid import pid_polynomials  # noqa: E402
+from primlib.ilc import NORM_OPTIMAL_MAX_N, NormOptimal, check_learning, learn  # noqa: E402
+from primlib.plant import (  # noqa: E402
+    Machine,
+    max_singular_value,
+    pid_polynomials,
+    toeplitz_operator,
+)
 
 N = 20_000
 REPEAT_FAST = 50
@@ -171,10 +174,11 @@ def _long_reference(n):
 
 def _bench_long(xyz):
     n_long, n_dense, iters = 20_000, NORM_OPTIMAL_MAX_N, 5
-    kw = dict(law="norm-optimal", iterations=iters, contour=False)
+    kw = dict(iterations=iters, contour=False)
+    dense_law, cg_law = NormOptimal(solver="dense"), NormOptimal(solver="cg")
     ref = _long_reference(n_long)
     t_chk, chk = median_time(lambda: check_learning(xyz, n_long, "norm-optimal"), 3)
-    t_cg, res = median_time(lambda: learn(xyz, ref, **kw), 3)
+    t_cg, res = median_time(lambda: learn(xyz, ref, law="norm-optimal", **kw), 3)
     cg_steps = [max(i.iterations for i in upd) for upd in res.cg]
     print(
         f"norm-optimal ILC, 3 axes x {n_long} samples, {iters} iterations, CG path "
@@ -188,10 +192,10 @@ def _bench_long(xyz):
     # baseline: the dense Cholesky path at the largest n it allows, scaled by n^3
     ref_d = _long_reference(n_dense)
     t_half, _ = median_time(
-        lambda: learn(xyz, _long_reference(n_dense // 2), solver="dense", **kw), 1
+        lambda: learn(xyz, _long_reference(n_dense // 2), law=dense_law, **kw), 1
     )
-    t_dense, dense = median_time(lambda: learn(xyz, ref_d, solver="dense", **kw), 1)
-    t_cg_d, cg_d = median_time(lambda: learn(xyz, ref_d, solver="cg", **kw), 3)
+    t_dense, dense = median_time(lambda: learn(xyz, ref_d, law=dense_law, **kw), 1)
+    t_cg_d, cg_d = median_time(lambda: learn(xyz, ref_d, law=cg_law, **kw), 3)
     scale = np.max(np.abs(dense.u))
     np.testing.assert_allclose(cg_d.u, dense.u, rtol=0, atol=1e-6 * scale)
     np.testing.assert_allclose(cg_d.rms_total, dense.rms_total, rtol=1e-6)

@@ -143,7 +143,7 @@ def learn_signal(
     model: Machine | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """ILC on ``machine`` (designed on ``model``) from zero; returns (u, rms per trial)."""
-    from primlib.ilc import learn
+    from primlib.ilc import LearnOptions, learn
 
     # dense convergence check: primlib.ilc's eigsh route does not converge when the
     # learning matrix's eigenvalues cluster at 1 (n > 400 on this machine)
@@ -156,7 +156,7 @@ def learn_signal(
         iterations=iterations,
         tol=ILC_TOL,
         contour=False,
-        dense_limit=max(400, reference.shape[0]),
+        options=LearnOptions(dense_limit=max(400, reference.shape[0])),
     )
     return np.asarray(res.u), np.asarray(res.rms_total)
 

@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from primlib._errors import InputError
+from primlib.ilc import MasterSlave
 from primlib.ilc._check import ConvergenceWarning
 from primlib.ilc._lifted import lifted_master_slave
 from primlib.ilc._master_slave import learn_master_slave
@@ -163,12 +164,10 @@ def test_regularised_position_domain_learns_where_the_raw_one_blows_up(paper_mac
     # floor -> 0 is the paper's 1 / dx: gains of ~kd / 1e-5 at the semicircle's ends make the
     # unfiltered PDILC blow up within 20 trials; the regularised domain keeps learning
     r = semicircle(801)
-    raw = learn_master_slave(
-        paper_machine, r, law="pdilc", q_cutoff=None, floor=1e-9, iterations=20, check=False
-    )
-    reg = learn_master_slave(
-        paper_machine, r, law="pdilc", q_cutoff=None, floor=0.25, iterations=20, check=False
-    )
+    raw_law = MasterSlave("pdilc", q_cutoff=None, floor=1e-9)
+    raw = learn_master_slave(paper_machine, r, law=raw_law, iterations=20, check=False)
+    reg_law = MasterSlave("pdilc", q_cutoff=None, floor=0.25)
+    reg = learn_master_slave(paper_machine, r, law=reg_law, iterations=20, check=False)
     assert raw.rms_contour[-1] > 5 * raw.rms_contour[0]
     assert reg.rms_contour[-1] < 0.6 * reg.rms_contour[0]
     assert np.all(np.diff(reg.rms_contour) < 0)
@@ -338,7 +337,9 @@ def test_lifted_rejects_a_mismatched_reference(paper_machine):
 # ----------------------------------------------------------------- learning loop
 def test_pdccilc_learns_the_semicircle_on_the_paper_machine(paper_machine):
     r = semicircle(801) + np.array([3.0, -2.0])  # absolute points: taken from the start
-    res = learn_master_slave(paper_machine, r, law="pdccilc", iterations=40, q_cutoff=1.0)
+    res = learn_master_slave(
+        paper_machine, r, law=MasterSlave("pdccilc", q_cutoff=1.0), iterations=40
+    )
     assert res.stopped == "iterations"
     assert len(res.errors) == 41 and res.rms.shape == (41, 2)
     assert res.rms_contour[-1] < 0.2 * res.rms_contour[0]
@@ -384,7 +385,9 @@ def test_tol_stops_early_and_warm_start_is_used(paper_machine):
 def test_not_monotonic_gives_a_warning(paper_machine):
     r = semicircle(200)
     with pytest.warns(ConvergenceWarning, match=r"pdccilc: monotonic convergence is not certified"):
-        learn_master_slave(paper_machine, r, law="pdccilc", q_cutoff=None, iterations=1)
+        learn_master_slave(
+            paper_machine, r, law=MasterSlave("pdccilc", q_cutoff=None), iterations=1
+        )
 
 
 @pytest.mark.parametrize(

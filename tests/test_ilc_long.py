@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy import linalg
 
 from primlib import InputError
-from primlib.ilc import ConvergenceWarning, check_learning, learn
+from primlib.ilc import ConvergenceWarning, NormOptimal, check_learning, learn
 from primlib.plant import Machine
 from primlib.plant._normal import CG_RTOL, NormalSolver
 
@@ -51,14 +51,15 @@ def _step_error_bound(machine, res, i):
     return total
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("machine", "q_cutoff"), [(XYZ, None), (XY, None), (XYZ, 8.0)])
 def test_cg_path_matches_the_dense_path(machine, q_cutoff):
     n = 801
     ref = _path(machine, n)
     ref -= ref[0]
-    kw = dict(law="norm-optimal", iterations=4, q_cutoff=q_cutoff, contour=False)
-    dense = learn(machine, ref, solver="dense", **kw)
-    cg = learn(machine, ref, solver="cg", **kw)
+    kw = dict(iterations=4, contour=False)
+    dense = learn(machine, ref, law=NormOptimal(solver="dense", q_cutoff=q_cutoff), **kw)
+    cg = learn(machine, ref, law=NormOptimal(solver="cg", q_cutoff=q_cutoff), **kw)
     assert dense.solver == "dense Cholesky" and dense.cg == ()
     assert "banded-Cholesky preconditioner" in cg.solver
     assert len(cg.cg) == 4 and all(info.converged for upd in cg.cg for info in upd)
@@ -97,7 +98,7 @@ def test_twenty_thousand_samples_converge_without_dense_matrices():
 def test_long_trial_check_is_monotonic_without_arpack_on_the_nmp_stage():
     chk = check_learning(XY, 12_000, "norm-optimal")
     assert chk.monotonic and chk.max_singular_value <= 1.0
-    q = check_learning(XYZ, 8000, "norm-optimal", q_cutoff=8.0)
+    q = check_learning(XYZ, 8000, NormOptimal(q_cutoff=8.0))
     assert q.monotonic and q.method.startswith("upper bound ||Q||")
     assert q.spectral_radius <= q.max_singular_value < 1.0
 
@@ -106,8 +107,8 @@ def test_long_check_bounds_the_dense_value():
     # n_r above dense_limit: Lanczos on G^-1, the value rounded up with its error bound
     n = 600
     w = np.array([1e-6, 2e-6, 3e-6])
-    fast = check_learning(XYZ, n, "norm-optimal", {"w": w}, dense_limit=0, solver="cg")
-    exact = check_learning(XYZ, n, "norm-optimal", {"w": w}, dense_limit=10_000)
+    fast = check_learning(XYZ, n, NormOptimal(w=w, solver="cg"), dense_limit=0)
+    exact = check_learning(XYZ, n, NormOptimal(w=w), dense_limit=10_000)
     T = XYZ.lifted(n)
     for i, (f, e) in enumerate(
         zip(fast.max_singular_value_axes, exact.max_singular_value_axes, strict=True)
@@ -166,13 +167,13 @@ def test_polynomials_that_do_not_describe_g_are_ignored():
 def test_solver_errors():
     ref = _path(XYZ, 50)
     with pytest.raises(InputError, match="solver: expected one of auto, dense, cg, got 'lu'"):
-        learn(XYZ, ref - ref[0], law="norm-optimal", solver="lu")
+        learn(XYZ, ref - ref[0], law=NormOptimal(solver="lu"))
     with pytest.raises(
         InputError,
         match=r"reference: solver 'dense' factors an n x n matrix per axis, expected "
         r"n <= 5000, got 5002; use solver 'cg' or 'auto'",
     ):
-        check_learning(XYZ, 5002, "norm-optimal", solver="dense")
+        check_learning(XYZ, 5002, NormOptimal(solver="dense"))
 
 
 def test_result_plot_delegates():
@@ -228,7 +229,7 @@ def test_cg_stopping_short_warns(monkeypatch):
     monkeypatch.setattr(learn_module, "NormalSolver", Starved)
     ref = _path(XYZ, 300)
     with pytest.warns(ConvergenceWarning, match=r"3 CG solve\(s\) stopped short of the tol"):
-        res = learn(XYZ, ref - ref[0], law="norm-optimal", solver="cg", iterations=1)
+        res = learn(XYZ, ref - ref[0], law=NormOptimal(solver="cg"), iterations=1)
     assert not any(info.converged for info in res.cg[0])
 
 
@@ -257,12 +258,12 @@ def test_cg_path_matches_dense_on_random_machines(tf, pid):
         return  # a random PID may not stabilise a random plant
     n = 400
     ref = np.sin(np.linspace(0.0, np.pi, n))[:, None] ** 2
-    kw = dict(law="norm-optimal", iterations=2, contour=False)
+    kw = dict(iterations=2, contour=False)
     with warnings.catch_warnings():
         # the check may find sigma_max ~ 1 on odd plants; the solves are what is tested
         warnings.simplefilter("ignore", ConvergenceWarning)
-        dense = learn(m, ref, solver="dense", **kw)
-        cg = learn(m, ref, solver="cg", **kw)
+        dense = learn(m, ref, law=NormOptimal(solver="dense"), **kw)
+        cg = learn(m, ref, law=NormOptimal(solver="cg"), **kw)
     assert all(info.converged for upd in cg.cg for info in upd)
     bound = _step_error_bound(m, dense, 0)
     assert np.linalg.norm(cg.u[:, 0] - dense.u[:, 0]) <= max(bound, 1e-12), bound

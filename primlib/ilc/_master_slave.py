@@ -17,8 +17,9 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.ilc._check import ConvergenceWarning
+from primlib.ilc._laws import MasterSlave
 from primlib.ilc._lifted import lifted_master_slave
-from primlib.ilc._ms_law import MasterSlaveGains, _check_reference, master_slave_law
+from primlib.ilc._ms_law import _check_reference, master_slave_law
 
 __all__ = ["MasterSlaveCheck", "MasterSlaveResult", "check_master_slave", "learn_master_slave"]
 
@@ -102,14 +103,9 @@ def learn_master_slave(
     reference,
     u0=None,
     *,
-    law: str = "pdccilc",
+    law: str | MasterSlave = "pdccilc",
     model=None,
-    gains: MasterSlaveGains | None = None,
-    q_cutoff: float | None = 1.0,
     iterations: int = 50,
-    master: int = 0,
-    lead: int = 1,
-    floor: float = 0.25,
     tol: float | None = None,
     check: bool = True,
 ) -> MasterSlaveResult:
@@ -125,22 +121,14 @@ def learn_master_slave(
         the machine's dt); taken relative to its first point, like the outputs.
     u0 : array, shape (n, 2), optional
         First trial's input (a warm start); zeros by default.
-    law : {"tdilc", "tdccilc", "pdilc", "pdccilc"}
-        Time- or position-domain learning, without or with cross-coupling.
+    law : {"tdilc", "tdccilc", "pdilc", "pdccilc"} or MasterSlave
+        Time- or position-domain learning, without or with cross-coupling; a
+        :class:`MasterSlave` sets the gains (default Table 1 of the paper), the Q-filter
+        (default 1 Hz), the master axis, the lead and the position-domain floor.
     model : Machine, optional
         Nominal model for the lifted check (default: ``plant``).
-    gains : MasterSlaveGains, optional
-        Learning gains; default Table 1 of the paper.
-    q_cutoff : float or None
-        -3 dB frequency in Hz of the zero-phase Q-filter (default 1 Hz); None: none.
     iterations : int
         Number of updates (>= 0); iterations + 1 trials are run.
-    master : {0, 1}
-        Master axis.
-    lead : int
-        Samples between an input and the error it learns from (paper: 1).
-    floor : float
-        Position-domain regularisation (fraction of the mean master step).
     tol : float, optional
         Stop once the RMS estimated contour error is at most ``tol`` (> 0).
     check : bool
@@ -170,6 +158,23 @@ def learn_master_slave(
     >>> bool(res.rms_contour[-1] < 0.5 * res.rms_contour[0])   # the coupling learns the contour
     True
     """
+    spec = law if isinstance(law, MasterSlave) else MasterSlave(law)
+    model = _check_machines(plant, model)
+    if hasattr(reference, "sample") and hasattr(reference, "duration"):
+        reference = reference.sample(plant.dt)  # a primlib Trajectory
+    points = _check_reference(reference)
+    r = points - points[0]
+    if not isinstance(iterations, int | np.integer) or iterations < 0:
+        raise InputError(f"iterations: expected an integer >= 0, got {iterations!r}")
+    if tol is not None and not (np.isfinite(tol) and tol > 0):
+        raise InputError(f"tol: expected an RMS contour error > 0, got {tol!r}")
+    u = np.zeros_like(r) if u0 is None else _check_u0(u0, r.shape)
+    ms = master_slave_law(r, plant.dt, **spec.options())
+    result_check = _check_and_warn(ms, model, r) if check else None
+    return _run(plant, ms, r, u, iterations, tol, result_check)
+
+
+def _check_machines(plant, model):
     if getattr(plant, "dim", None) != 2:
         raise InputError(
             f"plant: expected a two-axis machine (master and slave), "
@@ -181,48 +186,36 @@ def learn_master_slave(
             f"model: expected a two-axis machine with dt = {plant.dt:g} s like the plant, "
             f"got {getattr(model, 'dim', None)} axes at dt = {getattr(model, 'dt', None)}"
         )
-    if hasattr(reference, "sample") and hasattr(reference, "duration"):
-        reference = reference.sample(plant.dt)  # a primlib Trajectory
-    points = _check_reference(reference)
-    r = points - points[0]
-    if not isinstance(iterations, int | np.integer) or iterations < 0:
-        raise InputError(f"iterations: expected an integer >= 0, got {iterations!r}")
-    if tol is not None and not (np.isfinite(tol) and tol > 0):
-        raise InputError(f"tol: expected an RMS contour error > 0, got {tol!r}")
-    if u0 is None:
-        u = np.zeros_like(r)
-    else:
-        u = np.asarray(u0, dtype=float)
-        if u.shape != r.shape or not np.all(np.isfinite(u)):
-            raise InputError(f"u0: expected a finite array of shape {r.shape}, got {u.shape}")
-        u = u.copy()
-    ms = master_slave_law(
-        r,
-        plant.dt,
-        law=law,
-        gains=gains,
-        q_cutoff=q_cutoff,
-        master=master,
-        lead=lead,
-        floor=floor,
-    )
-    result_check = None
-    if check:
-        result_check = check_master_slave(ms, model, r)
-        if not result_check.monotonic:
-            rho = result_check.spectral_radius
-            verdict = (
-                f"it converges (rho <= {rho:.4f} < 1, eq. 29)"
-                if rho < 1
-                else f"and rho <= {rho:.4f} does not certify convergence either (eq. 29)"
-            )
-            warnings.warn(
-                f"{ms.law}: monotonic convergence is not certified on the model "
-                f"(sigma_max = {result_check.max_singular_value:.4f} >= 1, eq. 30); {verdict}",
-                ConvergenceWarning,
-                stacklevel=2,
-            )
+    return model
 
+
+def _check_u0(u0, shape) -> np.ndarray:
+    u = np.asarray(u0, dtype=float)
+    if u.shape != shape or not np.all(np.isfinite(u)):
+        raise InputError(f"u0: expected a finite array of shape {shape}, got {u.shape}")
+    return u.copy()
+
+
+def _check_and_warn(ms, model, r) -> MasterSlaveCheck:
+    result_check = check_master_slave(ms, model, r)
+    if not result_check.monotonic:
+        rho = result_check.spectral_radius
+        verdict = (
+            f"it converges (rho <= {rho:.4f} < 1, eq. 29)"
+            if rho < 1
+            else f"and rho <= {rho:.4f} does not certify convergence either (eq. 29)"
+        )
+        warnings.warn(
+            f"{ms.law}: monotonic convergence is not certified on the model "
+            f"(sigma_max = {result_check.max_singular_value:.4f} >= 1, eq. 30); {verdict}",
+            ConvergenceWarning,
+            stacklevel=3,
+        )
+    return result_check
+
+
+def _run(plant, ms, r, u, iterations, tol, result_check) -> MasterSlaveResult:
+    """The trials: simulate, estimate the contour error (eq. 1), update by eq. (9)."""
     inputs, outputs, errors, contour = [], [], [], []
     stopped = "iterations"
     for j in range(iterations + 1):
@@ -244,7 +237,6 @@ def learn_master_slave(
             break
         if j < iterations:
             u = ms.update(u, e)  # eq. (9)
-
     err = np.stack(errors)
     eps_all = np.stack(contour)
     return MasterSlaveResult(

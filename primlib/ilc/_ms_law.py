@@ -294,6 +294,49 @@ class MasterSlaveLaw:
         return self.q(u + self.correction(e))
 
 
+def _check_options(r, law, dt, master, lead, floor) -> tuple[str, float, float]:
+    """The law's name (lower case), dt and floor, each checked; the options too."""
+    name = str(law).lower()
+    if name not in LAWS:
+        raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
+    dt = float(dt)
+    if not np.isfinite(dt) or dt <= 0:
+        raise InputError(f"dt: expected a sample time > 0 s, got {dt!r}")
+    if master not in (0, 1):
+        raise InputError(f"master: expected axis 0 or 1, got {master!r}")
+    if not isinstance(lead, int | np.integer) or not 0 <= lead < r.shape[0]:
+        raise InputError(f"lead: expected an integer in [0, {r.shape[0] - 1}], got {lead!r}")
+    floor = float(floor)
+    if not np.isfinite(floor) or floor <= 0:
+        raise InputError(f"floor: expected a fraction > 0 of the mean master step, got {floor!r}")
+    return name, dt, floor
+
+
+def _q_weight(q_kernel: np.ndarray, n: int) -> np.ndarray:
+    return 1.0 / np.sqrt(signal.oaconvolve(np.ones(n), q_kernel, mode="same"))
+
+
+def _domain_increments(r, dt: float, master: int, floor: float, position: bool) -> np.ndarray:
+    """Per-sample domain increment dw (n, 3) of the master, the slave and the contour term:
+    dt in the time domain, the regularised master travel ds in the position domain."""
+    n = r.shape[0]
+    # position domain: regularised master travel (see module docstring)
+    # dx[0] = 0: the machine is at rest at the start point before the trial
+    dx = np.diff(r[:, master], prepend=r[0, master])
+    travel = float(np.sum(np.abs(dx)))
+    if travel > 0:
+        delta = floor * travel / (n - 1)
+        ds = np.hypot(dx, delta)
+    else:
+        ds = np.full(n, dt)  # the master never moves: no position domain, TD fallback
+    td = np.full(n, dt)
+    dw = np.empty((n, 3))
+    dw[:, master] = td  # the master always learns in time (eqs. 9, 16)
+    dw[:, 1 - master] = ds if position else td  # eq. (13)-(14) for the slave
+    dw[:, 2] = ds if position else td  # the contour term, eq. (15)
+    return dw
+
+
 def master_slave_law(
     reference,
     dt: float,
@@ -346,41 +389,11 @@ def master_slave_law(
     True
     """
     r = _check_reference(reference)
-    name = str(law).lower()
-    if name not in LAWS:
-        raise InputError(f"law: expected one of {', '.join(LAWS)}, got {law!r}")
-    dt = float(dt)
-    if not np.isfinite(dt) or dt <= 0:
-        raise InputError(f"dt: expected a sample time > 0 s, got {dt!r}")
-    if master not in (0, 1):
-        raise InputError(f"master: expected axis 0 or 1, got {master!r}")
-    if not isinstance(lead, int | np.integer) or not 0 <= lead < r.shape[0]:
-        raise InputError(f"lead: expected an integer in [0, {r.shape[0] - 1}], got {lead!r}")
-    floor = float(floor)
-    if not np.isfinite(floor) or floor <= 0:
-        raise InputError(f"floor: expected a fraction > 0 of the mean master step, got {floor!r}")
+    name, dt, floor = _check_options(r, law, dt, master, lead, floor)
     gains = MasterSlaveGains() if gains is None else gains
     ilc, ccc = gains.arrays()
     n = r.shape[0]
-    slave = 1 - master
-
-    # position domain: regularised master travel (see module docstring)
-    # dx[0] = 0: the machine is at rest at the start point before the trial
-    dx = np.diff(r[:, master], prepend=r[0, master])
-    travel = float(np.sum(np.abs(dx)))
-    if travel > 0:
-        delta = floor * travel / (n - 1)
-        ds = np.hypot(dx, delta)
-    else:
-        ds = np.full(n, dt)  # the master never moves: no position domain, TD fallback
-    td = np.full(n, dt)
-
-    position = name in ("pdilc", "pdccilc")
-    dw = np.empty((n, 3))
-    dw[:, master] = td  # the master always learns in time (eqs. 9, 16)
-    dw[:, slave] = ds if position else td  # eq. (13)-(14) for the slave
-    dw[:, 2] = ds if position else td  # the contour term, eq. (15)
-
+    dw = _domain_increments(r, dt, master, floor, position=name in ("pdilc", "pdccilc"))
     k = np.vstack([ilc, ccc])  # rows: axis 0, axis 1, contour
     kp, ki, kd = k[:, 0], k[:, 1], k[:, 2]
     a = kp + ki * dw / 2 + kd / dw  # alpha/gamma, eqs. (17), (19)
@@ -389,11 +402,9 @@ def master_slave_law(
     if name in ("tdilc", "pdilc"):
         a[:, 2] = 0.0
         b[:, 2] = 0.0
-    q_kernel = q_weight = None
-    if q_cutoff is not None:
-        q_kernel = gaussian_q_kernel(q_cutoff, dt)
-        rows = signal.oaconvolve(np.ones(n), q_kernel, mode="same")
-        q_weight = 1.0 / np.sqrt(rows)
+    q_kernel = None if q_cutoff is None else gaussian_q_kernel(q_cutoff, dt)
+    # D^-1/2: the symmetric normalisation of the kernel truncated at the ends (see q())
+    q_weight = None if q_kernel is None else _q_weight(q_kernel, n)
     return MasterSlaveLaw(
         law=name,
         master=master,

@@ -10,7 +10,9 @@ from primlib.plant._invert import invert
 from primlib.plant._lifted import max_singular_value, toeplitz_operator
 from primlib.plant._linear_motor import LinearMotor
 from primlib.plant._machine import Machine, machine_kinds, register_kind
+from primlib.plant._normal import CGInfo, NormalSolver
 from primlib.plant._pid import pid_polynomials
+from primlib.plant._spec import DT_RANGE
 
 __all__ = [
     "Machine",
@@ -20,5 +22,8 @@ __all__ = [
     "toeplitz_operator",
     "max_singular_value",
     "LinearMotor",
+    "NormalSolver",
+    "CGInfo",
     "pid_polynomials",
+    "DT_RANGE",
 ]

@@ -52,7 +52,7 @@ from scipy import linalg, signal, sparse
 
 from primlib.plant._lifted import toeplitz_operator
 
-__all__ = ["NormalSolver", "CG_RTOL", "ERROR_PERTURBATION"]
+__all__ = ["NormalSolver", "CGInfo", "CG_RTOL", "ERROR_PERTURBATION"]
 
 CG_RTOL = 1e-10  # ceiling of the relative residual
 ERROR_PERTURBATION = 1e-6  # bound of ||G d|| / ||e|| per solve (module docstring)

@@ -6,6 +6,11 @@ paper, the study's module docstring says so and why.
 """
 
 from primlib.reproduce._pdccilc import PAPER as PDCCILC_PAPER
-from primlib.reproduce._pdccilc import PdccilcStudy, pdccilc_study
+from primlib.reproduce._pdccilc import (
+    PdccilcStudy,
+    contour_reference,
+    paper_machine,
+    pdccilc_study,
+)
 
-__all__ = ["PDCCILC_PAPER", "PdccilcStudy", "pdccilc_study"]
+__all__ = ["PDCCILC_PAPER", "PdccilcStudy", "contour_reference", "paper_machine", "pdccilc_study"]
