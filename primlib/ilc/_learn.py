@@ -348,7 +348,7 @@ def learn(
         return learn_master_slave(plant, reference, u0, law=spec, **run)
     _check_run(iterations, tol)
     model = _check_model(plant, model)
-    ref = plant._check_signal(reference, "reference")
+    ref = plant.check_signal(reference, "reference")
     u = _first_input(plant, u0, ref)
     q = q_filter(spec, plant.dt)
     axes, used_gains, h = _prepare(model, ref.shape[0], spec, q)
@@ -384,7 +384,7 @@ def _check_run(iterations: Any, tol: Any) -> None:
 def _first_input(plant, u0, ref: np.ndarray) -> np.ndarray:
     if u0 is None:
         return np.zeros_like(ref)
-    u = plant._check_signal(u0, "u0")
+    u = plant.check_signal(u0, "u0")
     if u.shape != ref.shape:
         raise InputError(f"u0: expected the reference's shape {ref.shape}, got {u.shape}")
     return u.copy()

@@ -86,18 +86,7 @@ def run_contouring(
     InputError
         Reference of the wrong shape, a missing estimator, or a diverging loop.
     """
-    ref = np.asarray(reference, dtype=float)
-    if ref.ndim != 2 or ref.shape[1] != machine.dim or ref.shape[0] < 3:
-        raise InputError(
-            f"reference: expected an array of shape (n + 1, {machine.dim}) with n >= 2, "
-            f"got {ref.shape}"
-        )
-    if not np.all(np.isfinite(ref)):
-        raise InputError("reference: expected finite values, got NaN or inf")
-    if ccc_gain != 0.0 and estimator is None:
-        raise InputError("estimator: expected a contour estimator with ccc_gain != 0, got None")
-    if not isinstance(controller, (CFDLMFAC, PID)):
-        raise InputError(f"controller: expected a CFDLMFAC or PID, got {type(controller).__name__}")
+    ref = _check_run(machine, reference, controller, estimator, ccc_gain)
     n = ref.shape[0] - 1
     d = machine.dim
     start = ref[0]
@@ -113,11 +102,7 @@ def run_contouring(
     for k in range(n):
         p = machine.position(state)
         actual[k] = p
-        if not np.all(np.abs(p - ref[k]) < limit):
-            raise InputError(
-                f"gains: the closed loop diverged at t = {k * machine.dt:.4g} s "
-                f"(tracking error above {blowup:g} x the path extent)"
-            )
+        _check_bounded(p - ref[k], limit, k * machine.dt, blowup)
         y = scale * (p - start)
         if mfac:
             u = controller.step(y, ref_c[k + 1], prev)
@@ -134,3 +119,28 @@ def run_contouring(
         state = machine.advance(state, u)
     t = np.arange(n) * machine.dt
     return ContourRun(t, ref[:n].copy(), actual, applied, est, phi)
+
+
+def _check_bounded(error: np.ndarray, limit: float, t: float, blowup: float) -> None:
+    if not np.all(np.abs(error) < limit):
+        raise InputError(
+            f"gains: the closed loop diverged at t = {t:.4g} s "
+            f"(tracking error above {blowup:g} x the path extent)"
+        )
+
+
+def _check_run(machine, reference, controller, estimator, ccc_gain) -> np.ndarray:
+    """The reference as a float array (n + 1, d), after checking the run's arguments."""
+    ref = np.asarray(reference, dtype=float)
+    if ref.ndim != 2 or ref.shape[1] != machine.dim or ref.shape[0] < 3:
+        raise InputError(
+            f"reference: expected an array of shape (n + 1, {machine.dim}) with n >= 2, "
+            f"got {ref.shape}"
+        )
+    if not np.all(np.isfinite(ref)):
+        raise InputError("reference: expected finite values, got NaN or inf")
+    if ccc_gain != 0.0 and estimator is None:
+        raise InputError("estimator: expected a contour estimator with ccc_gain != 0, got None")
+    if not isinstance(controller, (CFDLMFAC, PID)):
+        raise InputError(f"controller: expected a CFDLMFAC or PID, got {type(controller).__name__}")
+    return ref

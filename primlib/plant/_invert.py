@@ -118,7 +118,7 @@ def invert(machine, y_desired, reference=None, reg: float = 1e-8, method: str = 
         raise InputError(f"method: expected one of {', '.join(_METHODS)}, got {method!r}")
     if not (isinstance(reg, (int, float)) and np.isfinite(reg) and reg > 0):
         raise InputError(f"reg: expected a finite regularisation weight > 0, got {reg!r}")
-    y = machine._check_signal(y_desired, "y_desired")
+    y = machine.check_signal(y_desired, "y_desired")
     w = y - machine.reference_response(reference) if reference is not None else y.copy()
     n, d = w.shape
     if method == "lifted":

@@ -276,11 +276,11 @@ class LinearMotor(Machine):
         y : array, shape (n, d)
             Position relative to the start, user units; ``y[k]`` responds to ``u[: k]``.
         """
-        u = self._check_signal(u, "u")
+        u = self.check_signal(u, "u")
         n = u.shape[0]
         r = np.zeros_like(u)
         if reference is not None:
-            r = self._check_signal(reference, "reference")
+            r = self.check_signal(reference, "reference")
             if r.shape != u.shape:
                 raise InputError(f"reference: expected the shape of u {u.shape}, got {r.shape}")
         state = self.initial_state(start)
@@ -314,7 +314,7 @@ class LinearMotor(Machine):
 
     def reference_response(self, reference: Any) -> np.ndarray:
         """Output of the nonlinear motor in its PID loops for u = 0, shape (n, d)."""
-        r = self._check_signal(reference, "reference")
+        r = self.check_signal(reference, "reference")
         return self.simulate(np.zeros_like(r), r)
 
     def impulse_response(self, n: int) -> np.ndarray:

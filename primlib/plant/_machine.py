@@ -257,7 +257,9 @@ class Machine:
         return [(nu.copy(), nr.copy(), d.copy()) for nu, nr, d in self._loops]
 
     # --------------------------------------------------------------------- simulation
-    def _check_signal(self, x: Any, what: str) -> np.ndarray:
+    def check_signal(self, x: Any, what: str) -> np.ndarray:
+        """``x`` as a finite float array of shape (n, d) for this machine's axes (a 1-D
+        array on a one-axis machine too); else an InputError naming ``what``."""
         arr = np.asarray(x, dtype=float)
         if arr.ndim == 1 and self.dim == 1:
             arr = arr[:, None]
@@ -286,12 +288,12 @@ class Machine:
         y : array, shape (n, d)
             Output relative to the start point.
         """
-        u = self._check_signal(u, "u")
+        u = self.check_signal(u, "u")
         y = np.empty_like(u)
         for i, (sos_u, _) in enumerate(self._sos):
             y[:, i] = apply_sections(sos_u, u[:, i])
         if reference is not None:
-            r = self._check_signal(reference, "reference")
+            r = self.check_signal(reference, "reference")
             if r.shape != u.shape:
                 raise InputError(f"reference: expected the shape of u {u.shape}, got {r.shape}")
             for i, (_, sos_r) in enumerate(self._sos):
@@ -301,7 +303,7 @@ class Machine:
 
     def reference_response(self, reference: Any) -> np.ndarray:
         """Output for u = 0 and the given PID reference, shape (n, d); zero on open-loop axes."""
-        r = self._check_signal(reference, "reference")
+        r = self.check_signal(reference, "reference")
         y = np.zeros_like(r)
         for i, (_, sos_r) in enumerate(self._sos):
             if sos_r is not None:
