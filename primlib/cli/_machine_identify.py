@@ -196,7 +196,6 @@ def machine_identify(
     primlib machine add stage.json
     """
     from primlib.identify import HOLDOUT, identify
-    from primlib.io import write_machine
 
     inputs = [input_file, output_file, reference_file]
     check_output("--out", out_file, (".json",), inputs)
@@ -224,7 +223,7 @@ def machine_identify(
         from primlib.plot import save_identified
 
         save_identified(res, plot_file)
-    write_machine(out_file, res.machine)
+    res.machine.to_json(out_file)
     if as_json:
         report = {**res.to_dict(), "out": str(out_file)}
         if plot_file is not None:
