@@ -393,7 +393,7 @@ def _first_input(plant, u0, ref: np.ndarray) -> np.ndarray:
 def _contour_enabled(contour: bool | None, d: int) -> bool:
     if contour and d < 2:
         raise InputError(f"contour: expected a path with 2 or 3 axes, got {d}")
-    return d >= 2 and contour is not False
+    return d >= 2 and (contour is None or bool(contour))
 
 
 class _Trials:
