@@ -52,6 +52,7 @@ import numpy as np
 from primlib._errors import InputError
 from primlib.ilc import (
     ConvergenceWarning,
+    MasterSlave,
     learn_master_slave,
     lifted_master_slave,
     master_slave_law,
@@ -198,9 +199,8 @@ def pdccilc_study(
             name = LAW_NAMES[law]
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ConvergenceWarning)  # reported below instead
-                res = learn_master_slave(
-                    machine, r, law=law, q_cutoff=q_cutoff, iterations=iterations, check=False
-                )
+                spec = MasterSlave(law, q_cutoff=q_cutoff)
+                res = learn_master_slave(machine, r, law=spec, iterations=iterations, check=False)
             rms[c][name] = res.rms_contour
             mx[c][name] = res.max_contour
             final_y[c][name] = res.outputs[-1]
