@@ -54,6 +54,7 @@ def _true_xyz():
     return Machine("xyz-true", XYZ.dt, XYZ.axes, plants)
 
 
+@pytest.mark.slow
 def test_norm_optimal_converges_monotonically_on_xyz():
     ref = _path(XYZ, 401)
     res = learn(XYZ, ref, law="norm-optimal", iterations=6)
@@ -86,6 +87,7 @@ def test_default_pd_is_d_type_on_integrating_axes_and_monotonic():
     assert res.rms_total[-1] < 0.1 * res.rms_total[0]
 
 
+@pytest.mark.slow
 def test_warm_start_from_the_converged_input_starts_converged():
     ref = _path(XYZ, 401)
     first = learn(XYZ, ref, law="norm-optimal", iterations=4)

@@ -103,6 +103,7 @@ def test_long_trial_check_is_monotonic_without_arpack_on_the_nmp_stage():
     assert q.spectral_radius <= q.max_singular_value < 1.0
 
 
+@pytest.mark.slow
 def test_long_check_bounds_the_dense_value():
     # n_r above dense_limit: Lanczos on G^-1, the value rounded up with its error bound
     n = 600
@@ -249,6 +250,7 @@ def _stable_tf(draw):
     return num, den.tolist()
 
 
+@pytest.mark.slow
 @given(_stable_tf(), st.sampled_from([None, {"kp": 0.5, "ki": 0.1}]))
 @settings(max_examples=15, deadline=None)
 def test_cg_path_matches_dense_on_random_machines(tf, pid):
