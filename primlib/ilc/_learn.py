@@ -294,37 +294,34 @@ def learn(
     plant : Machine
         Runs the trials (``simulate``; with feedback the PID tracks ``reference``).
     reference : array, shape (n, d)
-        Desired output relative to the start (the path minus its first point), on the
-        machine's dt grid.
+        Desired output relative to the start point, on the machine's dt grid.
     u0 : array, shape (n, d), optional
         First-trial input (a warm start); zeros when None.
     law : str or PLaw, PDLaw, PIDLaw, NormOptimal, MasterSlave
         The law with its gains and Q-filter, or its name (``"p"``, ``"pd"``, ``"pid"``,
         ``"norm-optimal"``: gains designed from the model, no Q-filter; ``"tdilc"``,
-        ``"tdccilc"``, ``"pdilc"``, ``"pdccilc"``: :func:`learn_master_slave` with the
-        paper's gains). See the module docstring.
+        ``"tdccilc"``, ``"pdilc"``, ``"pdccilc"``: :func:`learn_master_slave`, Table 1).
     model : Machine, optional
-        Designs the law and its check (default: ``plant``). Same dt and axes as the plant.
+        Designs the law and its check (default: ``plant``); the plant's dt and axes.
     iterations : int
-        Largest number of learning updates (trials run: iterations + 1).
+        Largest number of learning updates (trials: iterations + 1).
     tol : float, optional
         Stop when the RMS (Euclidean) tracking error is <= tol, in the reference's units
         (master–slave laws: the RMS estimated contour error).
     contour : bool, optional
-        Record the RMS contour error per trial (``primlib.contour.contour_error`` on the
-        reference samples; needs d >= 2). None: when d >= 2.
+        Record the RMS contour error per trial (``primlib.contour.contour_error``; needs
+        d >= 2). None: when d >= 2.
     options : LearnOptions, optional
-        Convergence-check size, per-trial callback (see :class:`LearnOptions`).
+        Convergence-check size, per-trial callback, master-slave check.
 
     Returns
     -------
-    ILCResult, or MasterSlaveResult for a MasterSlave law
+    ILCResult (MasterSlaveResult for a MasterSlave law)
 
     Warns
     -----
     ConvergenceWarning
-        sigma_max >= 1 (monotonic convergence not assured), or a norm-optimal CG solve
-        stopped short of its tolerance (``result.cg`` says which).
+        sigma_max >= 1, or a norm-optimal CG solve stopped short (``result.cg``).
 
     Raises
     ------
