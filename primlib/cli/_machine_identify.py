@@ -264,7 +264,7 @@ def machine_identify(
     type=(float, float),
     default=None,
     metavar="LOW HIGH",
-    help="Excited band in Hz [default: 1/duration to a fifth of Nyquist].",
+    help="Excited band in Hz [default: periods/duration to a fifth of Nyquist].",
 )
 @click.option("--max-rate", type=float, default=None, help="Largest |du/dt| (input units/s).")
 @click.option(
