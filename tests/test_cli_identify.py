@@ -160,3 +160,16 @@ def test_a_reference_needs_a_pid(tmp_path):
               "--out", tmp_path / "m.json", "--reference", y)  # fmt: skip
     assert res.exit_code == 2 and "--reference: expected --pid" in res.output
     assert not (tmp_path / "m.json").exists()
+
+
+def test_a_model_that_misses_the_held_out_part_is_flagged(tmp_path):
+    # positions unrelated to the input: no linear model follows them
+    rng = np.random.default_rng(5)
+    t = np.arange(200) * 0.005
+    write_signal_csv(tmp_path / "u.csv", t, rng.standard_normal((200, 2)))
+    write_path_csv(tmp_path / "y.csv", t, np.cumsum(rng.standard_normal((200, 2)), axis=0))
+    res = run("machine", "identify", "--input", tmp_path / "u.csv", "--output",
+              tmp_path / "y.csv", "--name", "m", "--out", tmp_path / "m.json",
+              "--structure", "integrator")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "warning: held-out NRMSE above 5 % on x, y" in res.output

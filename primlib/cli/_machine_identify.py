@@ -24,6 +24,9 @@ __all__ = ["machine_identify", "machine_excite"]
 _STRUCTURES = ("auto", "integrator", "first-order", "second-order")
 _GRID_RTOL = 1e-6  # the CSV reader's own tolerance on a uniform step
 _PID_KEYS = ("kp", "ki", "kd", "tf")
+# Above this held-out normalised RMS error the summary warns that the model does not follow
+# the stage (issue 11's acceptance bound for an identified model).
+_POOR_FIT = 0.05
 
 
 def _parse_pid(values: tuple[str, ...], axes: tuple[str, ...]) -> dict | None:
@@ -102,6 +105,13 @@ def _summary(res, out: Path, plot_file: Path | None) -> str:
         num = ", ".join(f"{v:.5g}+-{s:.2g}" for v, s in zip(f.num, f.num_std, strict=True))
         den = ", ".join(f"{v:.5g}+-{s:.2g}" for v, s in zip(f.den, f.den_std, strict=True))
         lines.append(f"{a:<5} {f.structure:<13} {100 * f.nrmse:>12.3f} %  [{num}] / [{den}]")
+    poor = [a for a, f in zip(m.axes, res.fits, strict=True) if f.nrmse > _POOR_FIT]
+    if poor:
+        lines.append(
+            f"warning: held-out NRMSE above {100 * _POOR_FIT:g} % on {', '.join(poor)}: the "
+            "model does not follow the stage there; excite with more amplitude and down to "
+            "lower frequencies (friction and drift dominate small, fast motions)"
+        )
     lines.append(f"wrote {out}; add it with: primlib machine add {out}")
     if plot_file is not None:
         lines.append(f"figure written to {plot_file}")
