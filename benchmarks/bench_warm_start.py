@@ -21,9 +21,9 @@ true machine from three first-iteration inputs:
 - inverse: the nominal-model inverse feedforward (what the model alone gives);
 - inverse-refined: the inverse of the refined model (what the library's pairs give a model).
 
-Ablations of the residual correction (first trial only), each with the refined and with the
-nominal model: "error" (default: G^-1 (y_d - E), E the model's error measured on the
-matched pieces' stored pairs, transformed and accumulated along the path), "input"
+Ablations of the residual correction (first trial only, benchmarks/_ablations.py), each with
+the refined and with the nominal model: "error" (default: G^-1 (y_d - E), E the model's error
+measured on the matched pieces' stored pairs, transformed and accumulated along the path), "input"
 (u_s + G^-1 y_d - Σ λ_j G^-1 y_j), "output" (u_s + G^-1 (y_d - y_w), y_w the pieces' paths
 blended like the inputs), "junction" (least squares near the junctions on the model's
 simulated output: the previous design) and "none" (the spliced pieces as they are). The
@@ -54,6 +54,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
 import build_example_library as ex  # noqa: E402
+from _ablations import CORRECTIONS  # noqa: E402
 
 from primlib.contour import contour_error  # noqa: E402
 from primlib.ilc import ConvergenceWarning, learn  # noqa: E402
@@ -231,7 +232,9 @@ def main(argv=None) -> int:
         ws_n = lib.warm_start(traj, "xyz", args.eps, match=ws.match, refine=False)
         t_grid = np.arange(ref.shape[0]) * dt
         for c, r in ablation:
-            wa = lib.warm_start(traj, "xyz", args.eps, match=ws.match, refine=r, correction=c)
+            wa = lib.warm_start(
+                traj, "xyz", args.eps, match=ws.match, refine=r, correction=CORRECTIONS[c]
+            )
             y1 = true.simulate(wa.u)
             e1 = np.sqrt(np.sum(np.mean((ref - y1) ** 2, axis=0)))
             c1 = np.sqrt(np.mean(contour_error(ref, t_grid, y1) ** 2))

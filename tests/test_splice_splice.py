@@ -62,21 +62,18 @@ def test_single_piece_rotated_time_scaled_is_exact(xyz, stored):
     pa = stored[7].points
     new = (_arc(1.6, xyz.dt) + np.array([1.0, 2.0, 3.0])) @ R.T + c
     seg = _seg(0, 1, 7, 0, 1, R, c, 2.0 / 1.6)
-    res = splice(xyz, new, 1.6, [seg], stored, correction="none")
+    res = splice(xyz, new, 1.6, [seg], stored)
     assert res.u.shape == new.shape
     assert res.methods == ("model",)
+    assert res.correction == "error"
+    # the transformed piece before the correction
     t = np.arange(new.shape[0]) * xyz.dt
     target = continuous_output(xyz, stored[7].signal, 1.25 * t) @ R.T
-    np.testing.assert_allclose(xyz.simulate(res.u), target, atol=1e-9 * np.abs(pa).max())
+    np.testing.assert_allclose(xyz.simulate(res.spliced), target, atol=1e-9 * np.abs(pa).max())
     # with the residual correction (default) the model follows the new path itself at the
     # samples, not the stored ZOH output between the stored samples
-    # ("input" / "output" go through the pieces' paths, a cubic spline of the stored samples
-    # at k t: error ~ dt^4 max|y^(4)| / 384, below 1e-7 of this 10-unit arc)
-    for correction, tol in (("error", 1e-9), ("input", 1e-7), ("output", 1e-7)):
-        got = splice(xyz, new, 1.6, [seg], stored, correction=correction)
-        np.testing.assert_allclose(got.spliced, res.u)
-        y = xyz.simulate(got.u)
-        np.testing.assert_allclose(y, new - new[0], atol=tol * np.abs(pa).max())
+    y = xyz.simulate(res.u)
+    np.testing.assert_allclose(y, new - new[0], atol=1e-9 * np.abs(pa).max())
 
 
 def test_path_that_is_a_stored_primitive_returns_its_signal(xyz, stored):
@@ -94,9 +91,9 @@ def test_window_of_a_primitive_keeps_its_state(xyz, stored):
     new = pa[i0:]
     seg = _seg(0, 1, 7, 0.4, 1.0, np.eye(3), [0, 0, 0], 1.0)
     # (the new path starts moving: from rest the machine cannot follow it, so the residual
-    # correction would add a start impulse; the cut alone is tested)
-    res = splice(xyz, new, 1.2, [seg], stored, correction="none")
-    np.testing.assert_array_equal(res.u, u[i0:])
+    # correction adds a start impulse; the cut alone, before it, is tested)
+    res = splice(xyz, new, 1.2, [seg], stored)
+    np.testing.assert_array_equal(res.spliced, u[i0:])
 
 
 def test_two_pieces_with_a_rest_junction(xyz, stored):
@@ -144,13 +141,13 @@ def test_junction_cases(xyz, stored, sign, kind):
         # the splice would join into one piece)
         shift = 0.1 * xyz.dt * v
     new, segs = _two_windows(xyz, stored, shift)
-    res = splice(xyz, new, 2.0, segs, stored, band=0.04, correction="none")
+    res = splice(xyz, new, 2.0, segs, stored, band=0.04)
     b = res.bands[0]
     assert b.kind == kind
     if kind == "continuous":
         assert b.end - b.start == pytest.approx(0.04)
         # the band blends two exact continuations of the same motion: still the signal
-        np.testing.assert_allclose(res.u, stored[7].signal, atol=1e-9)
+        np.testing.assert_allclose(res.spliced, stored[7].signal, atol=1e-9)
     else:
         assert abs(b.delta) == pytest.approx(0.05, rel=0.02)
         assert b.end - b.start >= 2 * 0.05

@@ -23,7 +23,7 @@ from primlib.nurbs import Trajectory
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
 from primlib.plant import Machine
-from primlib.splice import RefinedModel, refine_machine, splice
+from primlib.splice import Correction, RefinedModel, refine_machine, splice
 from primlib.store import Bank, Store
 
 __all__ = ["WarmStarter", "as_trajectory"]
@@ -130,7 +130,7 @@ class WarmStarter:
         band: float | None = None,
         method: str = "auto",
         refine: bool = True,
-        correction: str = "error",
+        correction: Correction | None = None,
         match: Match | None = None,
         **kw: Any,
     ) -> WarmStart:
@@ -150,8 +150,10 @@ class WarmStarter:
         refine : bool
             Transform on the model refined on stored (input, path) pairs
             (:meth:`refined_model`): they say how the real machine differs from its model.
-        correction : str
-            Residual correction of :func:`primlib.splice.splice` (default ``"error"``).
+        correction : Correction, optional
+            Residual correction of :func:`primlib.splice.splice` (default
+            :class:`~primlib.splice.ErrorCorrection`; the designs it was compared with are in
+            ``benchmarks/_ablations.py``).
         match : Match, optional
             A match already computed for this path and machine.
         **kw

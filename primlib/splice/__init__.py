@@ -33,13 +33,17 @@ Notation: signals ``u`` have shape (n, d) on the machine's dt grid; ``k`` = prim
 duration / new duration; signals and outputs are deviations from the path's first point.
 """
 
+from primlib.splice._blend import blend
 from primlib.splice._continuous import continuous_output, resample_zoh
+from primlib.splice._correct import Correction, CorrectionJob, ErrorCorrection
+from primlib.splice._inverse import model_inverse
+from primlib.splice._place import METHODS, PlacedPiece, Placement, place_piece, place_unmatched
+from primlib.splice._plan import Band, JunctionPlan, StoredSignal, plan_junctions
 from primlib.splice._refine import RefinedModel, refine_machine
-from primlib.splice._splice import CORRECTIONS, METHODS, Band, SpliceResult, StoredSignal, splice
+from primlib.splice._splice import SpliceResult, splice
 from primlib.splice._transform import (
     derivative_orders,
     holding_input,
-    model_inverse,
     piece_error,
     piece_path,
     superpose,
@@ -59,11 +63,20 @@ __all__ = [
     "model_inverse",
     "derivative_orders",
     "splice",
+    "plan_junctions",
+    "place_piece",
+    "place_unmatched",
+    "blend",
     "Band",
+    "JunctionPlan",
+    "Placement",
+    "PlacedPiece",
+    "Correction",
+    "CorrectionJob",
+    "ErrorCorrection",
     "SpliceResult",
     "StoredSignal",
     "METHODS",
-    "CORRECTIONS",
     "continuous_output",
     "resample_zoh",
     "refine_machine",

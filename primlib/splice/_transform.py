@@ -61,6 +61,7 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.splice._continuous import continuous_output, resample_linear, resample_zoh
+from primlib.splice._inverse import model_inverse
 
 __all__ = [
     "time_scale",
@@ -71,41 +72,7 @@ __all__ = [
     "derivative_orders",
     "piece_path",
     "piece_error",
-    "model_inverse",
 ]
-
-
-# longest horizon inverted by the regularised lifted solve (O(n^3)); longer ones use the
-# stable non-causal filter inverse
-LIFTED_MAX_N = 2000
-
-
-def _has_outside_zero(machine) -> bool:
-    """True when some axis's sampled plant has a zero outside the unit circle."""
-    for b, _ in machine.discrete():
-        b = np.trim_zeros(np.asarray(b, dtype=float), "f")
-        if b.size > 1 and np.any(np.abs(np.roots(b)) > 1.0 + 1e-9):
-            return True
-    return False
-
-
-def model_inverse(machine, y, reference=None) -> np.ndarray:
-    """The model's input for output ``y`` from rest (:func:`primlib.plant.invert`).
-
-    Where a sampled plant has a zero outside the unit circle — every axis of relative
-    degree 3 or more, e.g. the XYZ model once refinement has found a lag — the stable
-    filter inverse needs input before t = 0; truncated there, it leaves a state error that
-    an integrating axis keeps as a drift (measured: 0.12 mm on a time-scaled piece whose
-    stored path has a NURBS-fit ripple at its start). So up to ``LIFTED_MAX_N`` samples the
-    regularised lifted solve is used there (error 4e-4 mm on the same piece); the filter
-    inverse otherwise.
-    """
-    from primlib.plant import invert
-
-    n = np.shape(y)[0]
-    if n <= LIFTED_MAX_N and _has_outside_zero(machine):
-        return invert(machine, y, reference=reference, method="lifted")
-    return invert(machine, y, reference=reference)
 
 
 def _check_u(machine, u, what: str = "u") -> np.ndarray:
