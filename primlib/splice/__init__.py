@@ -14,7 +14,13 @@ scale k; each primitive's converged input is
    (:func:`splice`); unmatched segments get the nominal-model inverse;
 4. corrected — the model inverse of the path minus the model's error that the pieces'
    stored pairs measured (:func:`piece_error`), so the model's error only multiplies what
-   the library does not already know; see :mod:`primlib.splice._splice`.
+   the library does not already know (:class:`ErrorCorrection`, one implementation of the
+   :class:`Correction` protocol), inverted without the near-Nyquist band in which the
+   sampled model's sampling zeros make an exact inverse ring (:func:`band_limited_inverse`).
+
+:func:`splice` runs the stages in order: :func:`plan_junctions` (segments and bands),
+:func:`place_piece` / :func:`place_unmatched` (each segment's input on the new grid),
+:func:`blend` (across the bands) and the correction.
 
 :class:`primlib.pipeline.WarmStarter` does all of it from a library, by default on the
 machine model refined on the matched primitives' own (input, path) pairs
@@ -36,7 +42,12 @@ duration / new duration; signals and outputs are deviations from the path's firs
 from primlib.splice._blend import blend
 from primlib.splice._continuous import continuous_output, resample_zoh
 from primlib.splice._correct import Correction, CorrectionJob, ErrorCorrection
-from primlib.splice._inverse import model_inverse
+from primlib.splice._inverse import (
+    band_limit,
+    band_limited_inverse,
+    model_inverse,
+    sampling_zero_band,
+)
 from primlib.splice._place import METHODS, PlacedPiece, Placement, place_piece, place_unmatched
 from primlib.splice._plan import Band, JunctionPlan, StoredSignal, plan_junctions
 from primlib.splice._refine import RefinedModel, refine_machine
@@ -61,6 +72,9 @@ __all__ = [
     "piece_path",
     "piece_error",
     "model_inverse",
+    "band_limited_inverse",
+    "band_limit",
+    "sampling_zero_band",
     "derivative_orders",
     "splice",
     "plan_junctions",

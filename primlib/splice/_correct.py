@@ -19,9 +19,12 @@ inputs, are summed along the new path into E — increments, because the error a
 accumulated before the window is not on the new path. So the model's error only enters
 through the change of e_l under the time scale, and the junctions need nothing special: the
 inverse of the whole path is continuous through them. On the nominal machine E = 0 and u0 is
-the exact model inverse of the new path. The designs it was measured against (the blended
-input or output residual, a least-squares fit near the junctions, no correction) live in
-``benchmarks/_ablations.py`` and are compared by ``benchmarks/bench_warm_start.py``.
+the model inverse of the new path, without the band above ~2/3 of Nyquist where the sampled
+model's sampling zeros make an exact inverse ring (:func:`band_limited_inverse`): the model
+then follows the path at the samples up to the path's own content in that band. The designs
+it was measured against (the blended input or output residual, a least-squares fit near the
+junctions, no correction) live in ``benchmarks/_ablations.py`` and are compared by
+``benchmarks/bench_warm_start.py``.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from scipy import ndimage
 
 from primlib.defaults import BAND_SAMPLES
 from primlib.splice._blend import blend
-from primlib.splice._inverse import model_inverse
+from primlib.splice._inverse import band_limited_inverse
 from primlib.splice._place import PlacedPiece
 from primlib.splice._plan import JunctionPlan
 from primlib.splice._transform import piece_error
@@ -106,11 +109,12 @@ class Correction(Protocol):
 
 @dataclass(frozen=True)
 class ErrorCorrection:
-    """``u0 = G^-1 (y_d - E)``: E the model's error the pieces' stored pairs measured.
+    """``u0 = L G^-1 (y_d - E)``: E the model's error the pieces' stored pairs measured.
 
     Per piece the term is the increments of ``piece_error`` (the stored path minus the
     model's output of the stored input, transformed like the piece), zero at the piece's
     first sample; E is their blend summed along the path, smoothed over the band's scale.
+    L removes the near-Nyquist band of the sampling zeros (:func:`band_limited_inverse`).
     """
 
     name: str = "error"
@@ -140,9 +144,14 @@ class ErrorCorrection:
         return err_path - err_path[0]
 
     def __call__(self, job: CorrectionJob) -> tuple[np.ndarray, str]:
-        u = model_inverse(job.machine, job.y_d - self.error_path(job), reference=job.reference)
+        # without the sampling zeros' near-Nyquist band: the exact inverse rings there after
+        # every acceleration step of the path (each junction of pieces with different
+        # curvature), input the machine's samples barely see (issue 12)
+        y = job.y_d - self.error_path(job)
+        u = band_limited_inverse(job.machine, y, reference=job.reference)
         return u, (
             "model-error correction: the model inverse of the path minus the model's error "
             "the pieces measured (stored path minus model output of the stored input), "
-            "accumulated along the path"
+            "accumulated along the path, without the near-Nyquist band of the sampled "
+            "model's sampling zeros"
         )
