@@ -158,9 +158,14 @@ def splice(
 
     Examples
     --------
-    >>> res = splice(machine, points, 2.0, match.segments, stored)  # doctest: +SKIP
-    >>> res.u.shape == points.shape  # doctest: +SKIP
-    True
+    A path that is a stored primitive gets the primitive's stored input back as it is:
+
+    >>> from primlib.match import Segment
+    >>> stored = {1: StoredSignal(u, reference, 1.0, "demo")}
+    >>> seg = Segment(0, 1, 1, "demo", 0.0, 1.0, np.eye(3), np.zeros(3), 1.0, 0.0)
+    >>> res = splice(m, reference, 1.0, [seg], stored)
+    >>> bool(np.array_equal(res.u, u)), res.methods
+    (True, ('identity',))
     """
     correction = _checked(method, correction)
     plan = plan_junctions(machine, points, duration, segments, stored, band=band, absorb=absorb)
