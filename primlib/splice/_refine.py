@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from scipy import optimize
@@ -57,8 +58,48 @@ def _axis_tf(num, den, theta):
     return g * np.asarray(num, float), den_t
 
 
+def _axis_residual(theta, num, den, dt: float, inputs, outputs, scale: float) -> np.ndarray:
+    """Output error of one axis's G_θ on all pairs, relative to ``scale``, concatenated."""
+    n_, d_ = _axis_tf(num, den, theta)
+    m = Machine("fit", dt, ("a",), {"a": (n_, d_)})
+    return np.concatenate(
+        [(m.simulate(u[:, None])[:, 0] - y) / scale for u, y in zip(inputs, outputs, strict=True)]
+    )
+
+
+def _fit_axis(resid, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """θ for one axis, or (1, 1, 0) when the fit does not lower the error: (θ, r0, r1)."""
+    nominal = np.array([1.0, 1.0, 0.0])
+    r0 = resid(nominal)
+    try:
+        sol = optimize.least_squares(
+            resid,
+            x0=[1.0, 1.0, 0.002],
+            bounds=_BOUNDS,
+            x_scale=[0.1, 0.1, 0.01],
+            xtol=1e-10,
+            ftol=1e-12,
+            max_nfev=200,
+        )
+        th = sol.x
+        r1 = resid(th)
+    except (ValueError, np.linalg.LinAlgError):
+        th, r1 = nominal, r0
+    if th[2] < 0.1 * dt:
+        # a lag far below the sample time is not resolvable at this rate (and would put a
+        # sampling zero outside the unit circle for nothing): leave it out
+        th = np.array([th[0], th[1], 0.0])
+        r1 = resid(th)
+    if np.sum(r1**2) < np.sum(r0**2):
+        return th, r0, r1
+    return nominal, r0, r0
+
+
 def refine_machine(machine, pairs: Sequence[tuple[np.ndarray, np.ndarray]]) -> RefinedModel:
     """Fit (gain, time-constant scale, extra lag) per open-loop axis to stored pairs.
+
+    A pure function of the model and the pairs (keep its result in a
+    :class:`RefinementCache` to fit once).
 
     Parameters
     ----------
@@ -78,52 +119,26 @@ def refine_machine(machine, pairs: Sequence[tuple[np.ndarray, np.ndarray]]) -> R
     theta = np.tile([1.0, 1.0, 0.0], (d, 1))
     rms0 = np.zeros(d)
     rms1 = np.zeros(d)
-    plants = machine.plants
     if machine.feedback or not pairs:
         return RefinedModel(machine, theta, rms0, rms1)
-    u_all = [np.asarray(u, float) for u, _ in pairs]
-    y_all = [np.asarray(y, float) for _, y in pairs]
     new_plants = {}
     for i, axis in enumerate(machine.axes):
-        num, den = plants[axis]
-        scale = max(float(np.max(np.abs(np.concatenate([y[:, i] for y in y_all])))), 1e-12)
-
-        def resid(th, i=i, num=num, den=den, scale=scale):
-            n_, d_ = _axis_tf(num, den, th)
-            m = Machine("fit", machine.dt, ("a",), {"a": (n_, d_)})
-            return np.concatenate(
-                [
-                    (m.simulate(u[:, i : i + 1])[:, 0] - y[:, i]) / scale
-                    for u, y in zip(u_all, y_all, strict=True)
-                ]
-            )
-
-        r0 = resid(theta[i])
+        num, den = machine.plants[axis]
+        inputs = [np.asarray(u, float)[:, i] for u, _ in pairs]
+        outputs = [np.asarray(y, float)[:, i] for _, y in pairs]
+        scale = max(float(np.max(np.abs(np.concatenate(outputs)))), 1e-12)
+        resid = partial(
+            _axis_residual,
+            num=num,
+            den=den,
+            dt=machine.dt,
+            inputs=inputs,
+            outputs=outputs,
+            scale=scale,
+        )
+        theta[i], r0, r1 = _fit_axis(resid, machine.dt)
         rms0[i] = np.sqrt(np.mean(r0**2)) * scale
-        try:
-            sol = optimize.least_squares(
-                resid,
-                x0=[1.0, 1.0, 0.002],
-                bounds=_BOUNDS,
-                x_scale=[0.1, 0.1, 0.01],
-                xtol=1e-10,
-                ftol=1e-12,
-                max_nfev=200,
-            )
-            th = sol.x
-            r1 = resid(th)
-        except (ValueError, np.linalg.LinAlgError):
-            th, r1 = theta[i], r0
-        if th[2] < 0.1 * machine.dt:
-            # a lag far below the sample time is not resolvable at this rate (and would put a
-            # sampling zero outside the unit circle for nothing): leave it out
-            th = np.array([th[0], th[1], 0.0])
-            r1 = resid(th)
-        if np.sum(r1**2) < np.sum(r0**2):
-            theta[i] = th
-            rms1[i] = np.sqrt(np.mean(r1**2)) * scale
-        else:
-            rms1[i] = rms0[i]
+        rms1[i] = np.sqrt(np.mean(r1**2)) * scale
         new_plants[axis] = _axis_tf(num, den, theta[i])
     refined = Machine(machine.name, machine.dt, machine.axes, new_plants)
     return RefinedModel(refined, theta, rms0, rms1)
