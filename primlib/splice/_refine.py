@@ -25,6 +25,8 @@ from functools import partial
 import numpy as np
 from scipy import optimize
 
+from primlib.plant import Machine
+
 __all__ = ["RefinedModel", "refine_machine"]
 
 _BOUNDS = ((0.5, 0.5, 0.0), (2.0, 2.0, 0.2))  # g, c, tau [s]
@@ -98,8 +100,8 @@ def _fit_axis(resid, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def refine_machine(machine, pairs: Sequence[tuple[np.ndarray, np.ndarray]]) -> RefinedModel:
     """Fit (gain, time-constant scale, extra lag) per open-loop axis to stored pairs.
 
-    A pure function of the model and the pairs (keep its result in a
-    :class:`RefinementCache` to fit once).
+    A pure function of the model and the pairs (the pipeline's ``WarmStarter`` keeps its
+    results).
 
     Parameters
     ----------
@@ -113,8 +115,6 @@ def refine_machine(machine, pairs: Sequence[tuple[np.ndarray, np.ndarray]]) -> R
     -------
     RefinedModel
     """
-    from primlib.plant import Machine
-
     d = machine.dim
     theta = np.tile([1.0, 1.0, 0.0], (d, 1))
     rms0 = np.zeros(d)
