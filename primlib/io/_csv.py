@@ -18,7 +18,7 @@ import numpy as np
 
 from primlib._errors import InputError
 
-__all__ = ["read_uniform_table", "write_table", "MIN_ROWS", "T_RTOL"]
+__all__ = ["read_uniform_table", "parse_uniform_table", "write_table", "MIN_ROWS", "T_RTOL"]
 
 MIN_ROWS = 8
 """Fewest data rows a table may have (a cubic fit needs a handful of samples)."""
@@ -103,6 +103,37 @@ def read_uniform_table(
     except OSError as exc:
         raise InputError(f"{path}: cannot read the {what} file ({exc.strerror})") from None
 
+    return parse_uniform_table(text, headers, what, path)
+
+
+def parse_uniform_table(
+    text: str, headers: Sequence[Sequence[str]], what: str, label: str | os.PathLike
+) -> tuple[np.ndarray, np.ndarray]:
+    """Parse CSV text of a uniform time table, as :func:`read_uniform_table` reads a file.
+
+    For text that never was a file (an HTTP request body, say): the same checks and the
+    same messages, which name ``label`` where the file reader names the file.
+
+    Parameters
+    ----------
+    text : str
+        The whole table, header line first.
+    headers, what
+        As for :func:`read_uniform_table`.
+    label : str or path-like
+        What the text is called in error messages (``"body"``, ``"path_csv"``).
+
+    Returns
+    -------
+    t : array, shape (n,)
+    values : array, shape (n, c)
+
+    Raises
+    ------
+    InputError
+        As :func:`read_uniform_table`, for everything after the file was read.
+    """
+    path = label
     lines = text.splitlines()
     while lines and not lines[-1].strip():
         lines.pop()

@@ -10,9 +10,16 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import InputError
-from primlib.io._csv import read_uniform_table, write_table, write_text_atomic
+from primlib.io._csv import parse_uniform_table, read_uniform_table, write_table, write_text_atomic
 
-__all__ = ["PATH_HEADERS", "read_path_csv", "write_path_csv", "read_path_json", "write_path_json"]
+__all__ = [
+    "PATH_HEADERS",
+    "read_path_csv",
+    "parse_path_csv",
+    "write_path_csv",
+    "read_path_json",
+    "write_path_json",
+]
 
 PATH_HEADERS = [("t", "x", "y"), ("t", "x", "y", "z")]
 """Accepted path CSV headers, 2-D and 3-D."""
@@ -39,6 +46,14 @@ def read_path_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         For any malformed file (see :func:`primlib.io._csv.read_uniform_table`).
     """
     return read_uniform_table(path, PATH_HEADERS, "path")
+
+
+def parse_path_csv(text: str, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """Parse path CSV text (a request body, say) as :func:`read_path_csv` reads a file.
+
+    Errors name ``label`` where :func:`read_path_csv` names the file.
+    """
+    return parse_uniform_table(text, PATH_HEADERS, "path", label)
 
 
 def write_path_csv(path: str | os.PathLike, t: np.ndarray, points: np.ndarray) -> None:

@@ -14,9 +14,9 @@ import os
 import numpy as np
 
 from primlib._errors import InputError
-from primlib.io._csv import T_RTOL, read_uniform_table, write_table
+from primlib.io._csv import T_RTOL, parse_uniform_table, read_uniform_table, write_table
 
-__all__ = ["SIGNAL_HEADERS", "read_signal_csv", "write_signal_csv"]
+__all__ = ["SIGNAL_HEADERS", "read_signal_csv", "parse_signal_csv", "write_signal_csv"]
 
 SIGNAL_HEADERS = [("t", "ux", "uy"), ("t", "ux", "uy", "uz")]
 """Accepted signal CSV headers, 2 and 3 axes."""
@@ -55,6 +55,23 @@ def read_signal_csv(
     True
     """
     ts, u = read_uniform_table(path, SIGNAL_HEADERS, "signal")
+    _check_grid(path, ts, t)
+    return ts, u
+
+
+def parse_signal_csv(
+    text: str, label: str, t: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Parse signal CSV text (a request body, say) as :func:`read_signal_csv` reads a file.
+
+    Errors name ``label`` where :func:`read_signal_csv` names the file.
+    """
+    ts, u = parse_uniform_table(text, SIGNAL_HEADERS, "signal", label)
+    _check_grid(label, ts, t)
+    return ts, u
+
+
+def _check_grid(path: str | os.PathLike, ts: np.ndarray, t: np.ndarray | None) -> None:
     if t is not None:
         t = np.asarray(t, dtype=np.float64)
         dt = (t[-1] - t[0]) / (len(t) - 1) if len(t) > 1 else 0.0
@@ -65,7 +82,6 @@ def read_signal_csv(
                 f"T = {t[-1]:.9g} s), got {len(ts)} samples, dt = {dts:.9g} s, "
                 f"T = {ts[-1]:.9g} s"
             )
-    return ts, u
 
 
 def write_signal_csv(path: str | os.PathLike, t: np.ndarray, u: np.ndarray) -> None:
