@@ -47,9 +47,18 @@ class _Group(click.Group):
     type=click.Path(dir_okay=False),
     help=f"Library file (DuckDB). Default: $PRIMLIB_DB, else ./{DEFAULT_DB}.",
 )
+@click.option(
+    "--remote",
+    "remote",
+    envvar="PRIMLIB_REMOTE",
+    default=None,
+    metavar="URL",
+    help="Run read commands (list, show, match, machine list) against a `primlib serve` "
+    "at URL instead of --db (token: $PRIMLIB_TOKEN).",
+)
 @click.version_option(package_name="primlib")
 @click.pass_context
-def main(ctx: click.Context, db: str) -> None:
+def main(ctx: click.Context, db: str, remote: str | None) -> None:
     """primlib: a library of learned motion primitives for warm-starting ILC.
 
     Store paths with the converged ILC input each needed, match a new path against them
@@ -57,6 +66,7 @@ def main(ctx: click.Context, db: str) -> None:
     """
     ctx.ensure_object(dict)
     ctx.obj["db"] = os.fspath(db)
+    ctx.obj["remote"] = remote
 
 
 def _register() -> None:
@@ -77,6 +87,7 @@ _COMMAND_MODULES: list[str] = [
     "_reproduce_cee",
     "_match",
     "_machine_identify",
+    "_serve",
 ]
 
 
