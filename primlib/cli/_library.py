@@ -30,21 +30,41 @@ __all__ = ["machine", "list_primitives", "show", "remove"]
 
 
 def _db(ctx: click.Context) -> str:
-    return ctx.find_root().obj["db"]
+    obj = ctx.find_root().obj
+    return obj.get("remote") or obj["db"]
 
 
-def _open(ctx: click.Context, *, read_only: bool = False, create: bool = False) -> Store:
-    """The store of ``--db`` (persistence only)."""
+def _remote(ctx: click.Context, allowed: bool) -> Any:
+    """With ``--remote URL``: a :class:`primlib.client.Client` (the library's method names)
+    for a read command that passes ``remote=True``; any other command is refused."""
+    url = ctx.find_root().obj.get("remote")
+    if not url:
+        return None
+    if not allowed:
+        raise click.UsageError(
+            f"--remote: '{ctx.command_path}' works on a library file (--db); against a "
+            "server only list, show, match and machine list run"
+        )
+    from primlib.client import Client
+
+    return Client(url)
+
+
+def _open(
+    ctx: click.Context, *, read_only: bool = False, create: bool = False, remote: bool = False
+) -> Store:
+    """The store of ``--db`` (persistence only), or the server of ``--remote``."""
     from primlib.store import Store
 
-    return Store(_db(ctx), read_only=read_only, create=create)
+    return _remote(ctx, remote) or Store(_db(ctx), read_only=read_only, create=create)
 
 
-def _open_library(ctx: click.Context, *, read_only: bool = False) -> Library:
-    """The library of ``--db`` with the pipeline (match, warm start, learn)."""
+def _open_library(ctx: click.Context, *, read_only: bool = False, remote: bool = False) -> Library:
+    """The library of ``--db`` with the pipeline (match, warm start, learn), or the server
+    of ``--remote``."""
     from primlib.pipeline import Library
 
-    return Library(_db(ctx), read_only=read_only, create=False)
+    return _remote(ctx, remote) or Library(_db(ctx), read_only=read_only, create=False)
 
 
 def _open_waiting(db: str, wait: float, **kw: Any) -> Store:
@@ -125,7 +145,7 @@ def machine_add(ctx: click.Context, file: str, replace: bool) -> None:
 @click.pass_context
 def machine_list(ctx: click.Context, as_json: bool) -> None:
     """List the library's machines with their sample time, axes and primitive count."""
-    with _open(ctx, read_only=True) as lib:
+    with _open(ctx, read_only=True, remote=True) as lib:
         rows = lib.machine_summaries()
     if as_json:
         for r in rows:
@@ -170,7 +190,7 @@ def machine_remove(ctx: click.Context, name: str, with_primitives: bool) -> None
 @click.pass_context
 def list_primitives(ctx: click.Context, machine_name: str | None, as_json: bool) -> None:
     """List the stored primitives: id, name, machine, duration, samples, source, added."""
-    with _open(ctx, read_only=True) as lib:
+    with _open(ctx, read_only=True, remote=True) as lib:
         infos = lib.primitives(machine=machine_name)
     if as_json:
         click.echo(json.dumps([p.to_dict() for p in infos], indent=2))
@@ -214,7 +234,7 @@ def show(
     """Show one primitive: metadata, its NURBS and its signal's size per axis."""
     check_output("--signal-out", signal_out, TABLE_FORMATS)
     check_output("--path-out", path_out, TABLE_FORMATS)
-    with _open(ctx, read_only=True) as lib:
+    with _open(ctx, read_only=True, remote=True) as lib:
         p = lib.get(id)
         axes = lib.machine(p.machine).axes
     traj = p.trajectory

@@ -123,8 +123,10 @@ def match(
     for opt, f in (("--plot", plot_file), ("--out", out_file)):
         if f is not None and not f.parent.exists():
             raise InputError(f"{opt} {f}: directory {f.parent} does not exist")
+    if plot_file is not None and ctx.find_root().obj.get("remote"):
+        raise click.UsageError("--plot: draws from the library file; not with --remote")
     traj = Trajectory.from_csv(path_csv)
-    with _open_library(ctx, read_only=True) as lib:
+    with _open_library(ctx, read_only=True, remote=True) as lib:
         m = lib.machine(machine_name)
         if traj.dim != m.dim:
             raise InputError(
