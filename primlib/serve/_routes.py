@@ -15,7 +15,6 @@ from starlette.requests import Request
 from starlette.responses import PlainTextResponse, Response
 
 from primlib.serve._http import (
-    ApiError,
     Conflict,
     csv_text,
     json_response,
@@ -180,22 +179,18 @@ async def primitive_signal(request: Request) -> Response:
 
 async def primitive_add(request: Request) -> Response:
     need_write(request)
-    service = _service(request)
     body = fields(await read_json(request), ("machine", "path", "signal"), ("name", "source", "dt"))
     name, source = optional_str(body, "name"), optional_str(body, "source")
     machine_name = optional_str(body, "machine")
-    machine = await service.read(lambda lib: lib.machine(machine_name))
-
-    def parse() -> tuple[Any, np.ndarray]:
-        traj, t = path_of(body, machine)
-        return traj, signal_of(body, machine, t)
-
-    traj, u = await service.compute(parse)
 
     def add(lib: Any) -> dict[str, Any]:
+        # all in the writer thread: an ingest never queues behind the readers' warm starts
+        machine = lib.machine(machine_name)
+        traj, t = path_of(body, machine)
+        u = signal_of(body, machine, t)
         return lib.info(lib.add(traj, u, machine=machine_name, name=name, source=source)).to_dict()
 
-    return json_response(await service.write(add), 201)
+    return json_response(await _service(request).write(add), 201)
 
 
 async def primitive_remove(request: Request) -> Response:
@@ -211,13 +206,12 @@ async def primitive_remove(request: Request) -> Response:
 
 
 # ---------------------------------------------------------------------------- match
-async def _path_request(request: Request, options: tuple[str, ...], parse_options) -> tuple:
-    """(machine name, trajectory, eps, options) of a match or warm-start request.
+async def _path_request(request: Request, options: tuple[str, ...]) -> dict[str, Any]:
+    """The fields of a match or warm-start request: ``machine``, ``path`` and options.
 
     A JSON body carries every field; a CSV body (``Content-Type: text/csv``) is the path
     file and the other fields come as query parameters.
     """
-    service = _service(request)
     got = await read_json(request, csv_ok=True)
     if isinstance(got, str):
         body: dict[str, Any] = dict(request.query_params)
@@ -227,21 +221,27 @@ async def _path_request(request: Request, options: tuple[str, ...], parse_option
     else:
         body = got
     body = fields(body, ("machine", "path"), ("dt", *options))
-    machine_name = optional_str(body, "machine")
-    machine = await service.read(lambda lib: lib.machine(machine_name))
+    optional_str(body, "machine")
+    return body
 
-    def parse() -> tuple:
-        traj, _ = path_of(body, machine)
-        return traj, *parse_options(body, traj)
 
-    traj, eps, kw = await service.compute(parse)
-    return machine_name, traj, eps, kw
+def _parsed(lib: Any, body: dict[str, Any], parse_options) -> tuple:
+    """(trajectory, eps, options) for the request's machine, in the reader thread that then
+    computes (one trip through the reader queue per request)."""
+    machine = lib.machine(body["machine"])
+    traj, _ = path_of(body, machine)
+    return traj, *parse_options(body, traj)
 
 
 async def match(request: Request) -> Response:
-    name, traj, eps, kw = await _path_request(request, MATCH_FIELDS, match_options)
-    mt = await _service(request).read(lambda lib: lib.match(traj, machine=name, eps=eps, **kw))
-    return json_response({**mt.to_dict(), "duration": float(traj.duration)})
+    body = await _path_request(request, MATCH_FIELDS)
+
+    def run(lib: Any) -> dict[str, Any]:
+        traj, eps, kw = _parsed(lib, body, match_options)
+        mt = lib.match(traj, machine=body["machine"], eps=eps, **kw)
+        return {**mt.to_dict(), "duration": float(traj.duration)}
+
+    return json_response(await _service(request).read(run))
 
 
 def warm_start_dict(ws: Any, duration: float) -> dict[str, Any]:
@@ -260,25 +260,22 @@ def warm_start_dict(ws: Any, duration: float) -> dict[str, Any]:
 
 
 async def warm_start(request: Request) -> Response:
-    name, traj, eps, kw = await _path_request(request, WARM_FIELDS, warm_options)
-    ws = await _service(request).read(lambda lib: lib.warm_start(traj, machine=name, eps=eps, **kw))
-    if wants_csv(request):
-        header = ["t", "ux", "uy", "uz"][: ws.u.shape[1] + 1]
-        return Response(
-            csv_text(header, ws.t, ws.u),
-            media_type="text/csv",
-            headers={
-                "x-primlib-segments": str(len(ws.methods)),
-                "x-primlib-unmatched": str(ws.n_unmatched),
-            },
-        )
-    return json_response(
-        await _service(request).compute(lambda: warm_start_dict(ws, float(traj.duration)))
-    )
+    body = await _path_request(request, WARM_FIELDS)
+    csv = wants_csv(request)
 
+    def run(lib: Any) -> Any:
+        traj, eps, kw = _parsed(lib, body, warm_options)
+        ws = lib.warm_start(traj, machine=body["machine"], eps=eps, **kw)
+        if csv:
+            return ws, csv_text(["t", "ux", "uy", "uz"][: ws.u.shape[1] + 1], ws.t, ws.u)
+        return ws, warm_start_dict(ws, float(traj.duration))
 
-async def not_found(request: Request, exc: Exception) -> Response:
-    raise ApiError(404, f"{request.method} {request.url.path}: no such endpoint")
+    ws, answer = await _service(request).read(run)
+    if csv:
+        counts = {"x-primlib-segments": str(len(ws.methods))}
+        counts["x-primlib-unmatched"] = str(ws.n_unmatched)
+        return Response(answer, media_type="text/csv", headers=counts)
+    return json_response(answer)
 
 
 ROUTES: list[tuple[str, str, Any, bool]] = [
