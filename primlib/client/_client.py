@@ -23,8 +23,10 @@ __all__ = ["Client", "RemoteError", "RemoteInputError", "RemoteNotFoundError"]
 
 
 class RemoteError(PrimlibError):
-    """The server could not be reached, or failed (5xx). ``status`` is the HTTP status
-    (None when there was no answer)."""
+    """The server could not be reached, or answered with a failure (5xx).
+
+    ``status`` is the HTTP status (None when there was no answer).
+    """
 
     def __init__(self, message: str, status: int | None = None) -> None:
         super().__init__(message)

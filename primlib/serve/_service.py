@@ -15,7 +15,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
-from primlib._errors import InputError
+from primlib._errors import LibraryBusyError
 
 __all__ = ["Service"]
 
@@ -79,11 +79,13 @@ class Service:
 
         Raises
         ------
-        InputError
+        LibraryBusyError
             When the server is shutting down (the write is refused, nothing written).
         """
         if self._closing:
-            raise InputError("the server is shutting down; the write was refused, send it again")
+            raise LibraryBusyError(
+                f"{self.db}: the server is shutting down; the write was refused, send it again"
+            )
         loop = asyncio.get_running_loop()
         return await loop.run_in_executor(self._writer, lambda: fn(self._writer_lib))
 
