@@ -71,10 +71,10 @@ def test_health_version_openapi_and_every_route_documented(world):
     assert status == 200 and v["primlib"] == pl.__version__ and v["schema_version"] >= 1
     status, doc, _ = s.call("GET", "/openapi.json")
     assert status == 200 and doc["openapi"].startswith("3.")
-    from primlib.serve._routes import ROUTES
+    from primlib.serve import endpoints
 
     documented = {(m.upper(), p) for p, ops in doc["paths"].items() for m in ops}
-    assert documented == {(m, p) for m, p, _, _ in ROUTES}
+    assert documented == set(endpoints())
 
 
 def test_unknown_route_and_method(world):

@@ -13,6 +13,7 @@ from primlib.serve._app import DEFAULT_PORT, create_app, serve
 from primlib.serve._auth import Tokens, is_loopback, read_tokens
 from primlib.serve._http import DEFAULT_MAX_BODY
 from primlib.serve._ops import Metrics
+from primlib.serve._routes import endpoints
 from primlib.serve._service import Service
 
 __all__ = [
@@ -25,4 +26,5 @@ __all__ = [
     "Metrics",
     "DEFAULT_PORT",
     "DEFAULT_MAX_BODY",
+    "endpoints",
 ]

@@ -35,7 +35,7 @@ from primlib.serve._inputs import (
     warm_options,
 )
 
-__all__ = ["ROUTES"]
+__all__ = ["ROUTES", "endpoints"]
 
 
 def _service(request: Request) -> Any:
@@ -279,7 +279,7 @@ async def warm_start(request: Request) -> Response:
 
 
 ROUTES: list[tuple[str, str, Any, bool]] = [
-    # (method, path template, handler, writes)
+    # (method, path template, handler, writes): the endpoints, as /openapi.json lists them
     ("GET", "/health", health, False),
     ("GET", "/version", version, False),
     ("GET", "/metrics", metrics, False),
@@ -295,3 +295,8 @@ ROUTES: list[tuple[str, str, Any, bool]] = [
     ("POST", "/match", match, False),
     ("POST", "/warm-start", warm_start, False),
 ]
+
+
+def endpoints() -> list[tuple[str, str]]:
+    """Every endpoint the server answers, as (method, path template) pairs."""
+    return [(method, path) for method, path, _, _ in ROUTES]
