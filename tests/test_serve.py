@@ -142,7 +142,7 @@ def test_primitive_add_as_points_and_as_csv_then_show_signal_remove(world):
         {
             "machine": "xyz",
             "path": _csv("t,x,y,z", t, p),
-            "signal": _csv("t,ux,uy,uz", t, u),
+            "signal": _csv("t,ux,uy,uz", t, 1.01 * u),  # another primitive (same is kept once)
             "source": "csv",
         },
     )
