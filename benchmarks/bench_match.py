@@ -5,11 +5,12 @@ Reports, each beside its baseline measured in the same run:
 
 * the whole ``Library.match`` on a library file, the first call (a freshly opened file:
   the bank read from DuckDB, the arc-length index built, the segmentation; median of 3
-  fresh opens) and warm calls (median of 5), against the 2 s goal and the baselines below;
+  fresh opens) and warm calls (``match_path`` on one ``BankIndex`` kept across calls, as
+  the pipeline keeps it; median of 5), against the 2 s goal and the baselines below;
 * the same segmentation from the exhaustive scan of the same candidate windows with no
-  bounds (``search="scan"``) on 1,000 primitives, and from the exhaustive time-uniform
-  grid (``search="grid"``: every primitive × start × time scale, vectorised) on 100 —
-  both asserted equal;
+  bounds (``scan`` of ``_reference_search.py``) on 1,000 primitives, and from the
+  exhaustive time-uniform grid (``grid``: every primitive × start × time scale,
+  vectorised) on 100 — both asserted equal;
 * the plain per-candidate Kabsch loop: timed on 3,000 windows, scaled by the number of
   windows the exhaustive scan scores;
 * first-call and warm match time against library size 10 / 100 / 1,000.
@@ -35,13 +36,12 @@ from pathlib import Path  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from anywhere
 
 import numpy as np  # noqa: E402
+from _reference_search import reference_segment_path  # noqa: E402
 from _timing import median_time  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from primlib.match import _segment, segment_path  # noqa: E402
-from primlib.match._bank import as_bank  # noqa: E402
-from primlib.match._kabsch import kabsch  # noqa: E402
-from primlib.match._search import PathPiece  # noqa: E402
+from primlib.match import BankIndex, kabsch, match_path, segment_path  # noqa: E402
+from primlib.match._options import PathPiece  # noqa: E402
 from primlib.nurbs import Trajectory  # noqa: E402
 from primlib.pipeline import Library  # noqa: E402
 from primlib.plant import Machine  # noqa: E402
@@ -78,7 +78,6 @@ def first_call(db: Path, machine: str, path: Trajectory, repeat: int = 3):
     index build, segmentation) and of its bank read alone; the last Match."""
     times, reads, mt = [], [], None
     for _ in range(repeat):
-        _segment._INDEX_CACHE.clear()  # the matcher's only state across calls
         with Library(db) as lb:
             t0 = time.perf_counter()
             mt = lb.match(path, machine=machine, eps=EPS)
@@ -143,12 +142,13 @@ def main() -> None:
     for k in (1000, 100, 10):  # the 1,000 case first: the process's very first call too
         first[k], reads[k], firsts[k] = first_call(dbs[k], machine.name, path)
     libs = {k: Library(dbs[k]) for k in sizes}
+    indexes = {k: BankIndex(libs[k].bank(machine.name)) for k in sizes}
     for k in sizes:
-        libs[k].match(path, machine=machine.name, eps=EPS)
-        warms[k] = median_time(lambda lb=libs[k]: lb.match(path, machine=machine.name, eps=EPS), 5)
+        match_path(indexes[k], path, eps=EPS)
+        warms[k] = median_time(lambda ix=indexes[k]: match_path(ix, path, eps=EPS), 5)
     cold, mt = first[1000], firsts[1000]
     warm, mt2 = warms[1000]
-    lib = libs[1000]
+
     assert key(mt.segments) == key(mt2.segments)
     segs = mt.segments
     print(f"\nmatch, 1,000 primitives: {len(segs)} segments, {mt.n_unmatched} unmatched")
@@ -173,12 +173,12 @@ def main() -> None:
     )
 
     # -- the exhaustive searches on the same samples
-    bank = as_bank(lib.bank(machine.name))
+    bank = indexes[1000]
     pts = path.at(np.linspace(0.0, 1.0, n))
     dt = path.duration / (n - 1)
     fast_segs, _ = segment_path(bank, pts, dt, EPS)
     t0 = time.perf_counter()
-    scan_segs, scan_info = segment_path(bank, pts, dt, EPS, search="scan")
+    scan_segs, scan_info = reference_segment_path(bank, pts, dt, EPS, "scan")
     scan_t = time.perf_counter() - t0
     same_scan = key(scan_segs) == key(fast_segs)
     print(
@@ -189,10 +189,10 @@ def main() -> None:
     assert same_scan, f"scan {key(scan_segs)} != index {key(fast_segs)}"
 
     k_ex = 1000 if args.full_grid else 100
-    bank_g = as_bank(libs[k_ex].bank(machine.name))
+    bank_g = indexes[k_ex]
     fast_g_t, (fast_g, _) = median_time(lambda: segment_path(bank_g, pts, dt, EPS), 1)
     t0 = time.perf_counter()
-    grid_segs, grid_info = segment_path(bank_g, pts, dt, EPS, search="grid")
+    grid_segs, grid_info = reference_segment_path(bank_g, pts, dt, EPS, "grid")
     grid_t = time.perf_counter() - t0
     same_grid = key(grid_segs) == key(fast_g)
     print(

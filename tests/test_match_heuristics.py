@@ -4,23 +4,25 @@ pieces at the edges of the time-scale range, and a fast wiggle that stretches ar
 
 import numpy as np
 import pytest
+from _reference_search import reference_segment_path
 from test_match_segment import DT, _check_segments, _compose, _library, _spline
 
-from primlib.match import BankArrays, segment_path
+from primlib.match import BankIndex, segment_path
+from primlib.store import Bank
 
 
 def _key(segs):
     return [(round(s.end, 6), s.primitive) for s in segs]
 
 
-def _near_duplicates(n_copies: int = 12, n: int = 1201) -> BankArrays:
+def _near_duplicates(n_copies: int = 12, n: int = 1201) -> BankIndex:
     """One random curve traversed with n_copies speed profiles t + a·sin(2πt)/π, |a| ≤ 0.04
     (monotone): the same shape, uniform-time RMSD ≈ 1.4 between neighbouring copies."""
     curve = _spline(_library(1, n, seed=3).points_of(0))
     t = np.linspace(0.0, 1.0, n)
     amps = (np.arange(n_copies) - (n_copies - 1) / 2) / ((n_copies - 1) / 2) * 0.04
     pieces = [curve(t + a * np.sin(2 * np.pi * t) / np.pi) for a in amps]
-    return BankArrays.from_list(pieces, DT, ids=np.arange(200, 200 + n_copies))
+    return BankIndex(Bank.from_samples(pieces, DT, ids=np.arange(200, 200 + n_copies)))
 
 
 @pytest.mark.parametrize("eps", [0.05, 0.2])
@@ -44,7 +46,7 @@ def test_near_duplicates_never_cut_more_segments_than_the_time_grid():
     bank = _near_duplicates()
     pts, _ = _compose(bank, [(7, 0.1, 0.5, 0.8), (9, 0.5, 0.9, 1.3)], seed=5)
     segs, _ = segment_path(bank, pts, DT, 0.05)
-    grid, _ = segment_path(bank, pts, DT, 0.05, search="grid")
+    grid, _ = reference_segment_path(bank, pts, DT, 0.05, "grid")
     assert len(segs) == 2 <= len(grid)
 
 
@@ -60,7 +62,7 @@ def test_pieces_at_the_edges_of_the_time_scale_range(spec):
     bank = _library(6, 1601, seed=4)
     pts, cuts = _compose(bank, spec, seed=7)
     segs, _ = segment_path(bank, pts, DT, 0.05)
-    grid, _ = segment_path(bank, pts, DT, 0.05, search="grid")
+    grid, _ = reference_segment_path(bank, pts, DT, 0.05, "grid")
     assert _key(segs) == _key(grid)
     assert [s.primitive for s in segs] == [100 + row for row, *_ in spec]
     for seg, (*_, k) in zip(segs, spec, strict=True):
@@ -80,7 +82,7 @@ def _wiggled(amp: float, period: float):
 def test_a_wiggle_of_four_samples_keeps_the_index_equal_to_the_grid():
     bank, pts = _wiggled(0.05, 4.0)  # RMS 0.061 < eps: both pieces still match
     segs, _ = segment_path(bank, pts, DT, 0.1)
-    grid, _ = segment_path(bank, pts, DT, 0.1, search="grid")
+    grid, _ = reference_segment_path(bank, pts, DT, 0.1, "grid")
     assert _key(segs) == _key(grid)
     assert [s.primitive for s in segs] == [100, 101]
 
@@ -95,5 +97,5 @@ def test_a_wiggle_of_four_samples_keeps_the_index_equal_to_the_grid():
 def test_a_wiggle_of_three_samples_breaks_the_arc_length_gate():
     bank, pts = _wiggled(0.06, 3.0)
     segs, _ = segment_path(bank, pts, DT, 0.1)
-    grid, _ = segment_path(bank, pts, DT, 0.1, search="grid")
+    grid, _ = reference_segment_path(bank, pts, DT, 0.1, "grid")
     assert _key(segs) == _key(grid)

@@ -81,7 +81,7 @@ def test_qcp_rmsd_equals_svd_rmsd(seed, n, mode):
     else:
         sp, sq = (pc**2).sum(axis=(1, 2)), (qc**2).sum(axis=(1, 2))
     fast = rmsd_from_moments(s, sp, sq, n, mode)
-    np.testing.assert_allclose(fast, kabsch(p, q, mode=mode).rmsd, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(fast, kabsch(p, q, rotation=mode).rmsd, rtol=1e-7, atol=1e-9)
 
 
 def test_qcp_keeps_precision_for_near_identical_pieces():
@@ -132,22 +132,22 @@ def test_line_in_2d():
 def test_mode_z_rotates_about_the_vertical_only():
     p = _curve(30, 3, 1)
     rz = Rotation.from_euler("z", 40, degrees=True).as_matrix()
-    res = kabsch(p, p @ rz.T + [1, 2, 3], mode="z")
+    res = kabsch(p, p @ rz.T + [1, 2, 3], rotation="z")
     assert res.rmsd < 1e-10
     np.testing.assert_allclose(res.rotation, rz, atol=1e-10)
     tilted = p @ Rotation.from_euler("x", 30, degrees=True).as_matrix().T
-    resz = kabsch(p, tilted, mode="z")
+    resz = kabsch(p, tilted, rotation="z")
     np.testing.assert_allclose(resz.rotation[2], [0, 0, 1])
     assert resz.rmsd > kabsch(p, tilted).rmsd + 1e-3
 
 
 def test_mode_none_is_translation_only():
     p = _curve(30, 3, 2)
-    res = kabsch(p, p + 3.0, mode="none")
+    res = kabsch(p, p + 3.0, rotation="none")
     np.testing.assert_allclose(res.rotation, np.eye(3))
     assert res.rmsd < 1e-12
     rotated = p @ _rot(3, 5).T
-    res2 = kabsch(p, rotated, mode="none")
+    res2 = kabsch(p, rotated, rotation="none")
     expect = np.sqrt(np.mean(np.sum((rotated - rotated.mean(0) - p + p.mean(0)) ** 2, axis=1)))
     assert res2.rmsd == pytest.approx(expect)
 
@@ -177,8 +177,11 @@ def test_batched_shapes():
     [
         ({"P": np.zeros((5, 3)), "Q": np.zeros((5, 2))}, "equal shape"),
         ({"P": np.zeros((5, 4)), "Q": np.zeros((5, 4))}, "d in 2 or 3"),
-        ({"P": np.zeros((5, 2)), "Q": np.zeros((5, 2)), "mode": "z"}, "needs 3-D"),
-        ({"P": np.zeros((5, 3)), "Q": np.zeros((5, 3)), "mode": "spin"}, "one of full, z, none"),
+        ({"P": np.zeros((5, 2)), "Q": np.zeros((5, 2)), "rotation": "z"}, "needs 3-D"),
+        (
+            {"P": np.zeros((5, 3)), "Q": np.zeros((5, 3)), "rotation": "spin"},
+            "one of full, z, none",
+        ),
         ({"P": np.zeros((5, 3)), "Q": np.zeros((5, 3)), "weights": -np.ones(5)}, "weights"),
     ],
 )

@@ -2,18 +2,21 @@
 
 import numpy as np
 import pytest
+from _reference_search import ScanSearch, reference_segment_path
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
 from primlib import InputError, NoMatchError
-from primlib.match import BankArrays, SearchOptions, segment_path
-from primlib.match._bank import cubic_at
-from primlib.match._search import ArcIndex, IndexSearch, PathPiece
+from primlib.match import BankIndex, SearchOptions, segment_path
+from primlib.match._index_search import IndexSearch
+from primlib.match._interp import cubic_at
+from primlib.match._options import PathPiece
+from primlib.store import Bank
 
 DT = 0.01
 
 
-def _library(k: int, n: int, d: int = 3, seed: int = 0) -> BankArrays:
+def _library(k: int, n: int, d: int = 3, seed: int = 0) -> BankIndex:
     """k smooth random curves (sums of 6 harmonics), n samples each, ~50 units wide."""
     rng = np.random.default_rng(seed)
     t = np.linspace(0, 1, n)[:, None, None]
@@ -23,7 +26,7 @@ def _library(k: int, n: int, d: int = 3, seed: int = 0) -> BankArrays:
         amp = rng.normal(size=(1, 6, d)) * 50 / f**1.5
         ph = rng.uniform(0, 2 * np.pi, size=(1, 6, d))
         pieces.append((amp * np.sin(2 * np.pi * f * t + ph)).sum(axis=1))
-    return BankArrays.from_list(pieces, DT, ids=np.arange(100, 100 + k))
+    return BankIndex(Bank.from_samples(pieces, DT, ids=np.arange(100, 100 + k)))
 
 
 def _rotation(d: int, rng, mode: str = "full") -> np.ndarray:
@@ -43,7 +46,7 @@ def _spline(points: np.ndarray) -> CubicSpline:
     return CubicSpline(np.linspace(0, 1, len(points)), points, axis=0)
 
 
-def _compose(bank: BankArrays, spec, seed: int = 1, mode: str = "full"):
+def _compose(bank: BankIndex, spec, seed: int = 1, mode: str = "full"):
     """Path from pieces (primitive row, v0, v1, time scale k): rotated, joined end to start."""
     rng = np.random.default_rng(seed)
     d = bank.dim
@@ -117,9 +120,10 @@ def test_same_segmentation_as_exhaustive_grid_and_per_candidate_loop():
     eps = 0.05
     opts = SearchOptions(seeds=2)
     out = {
-        s: segment_path(bank, pts, DT, eps, search=s, options=opts, time_scale=(0.5, 2.0))[0]
-        for s in ("index", "scan", "grid", "loop")
+        s: reference_segment_path(bank, pts, DT, eps, s, options=opts, time_scale=(0.5, 2.0))[0]
+        for s in ("scan", "grid", "loop")
     }
+    out["index"] = segment_path(bank, pts, DT, eps, options=opts, time_scale=(0.5, 2.0))[0]
     key = {s: [(g.end, g.primitive) for g in segs] for s, segs in out.items()}
     assert key["index"] == key["scan"] == key["grid"] == key["loop"]
     for a, b in zip(out["grid"], out["loop"], strict=True):
@@ -170,12 +174,11 @@ def test_arc_index_pruning_keeps_the_exact_top_seeds():
     bank = _library(8, 300, seed=8)
     pts, _ = _compose(bank, [(5, 0.2, 0.5, 1.2)], seed=3)
     path = PathPiece(pts, (len(pts) - 1) * DT)
-    index = ArcIndex.build(bank)
     opts = SearchOptions(seeds=3)
-    pruned = IndexSearch(bank, opts, index=index)
+    pruned = IndexSearch(bank, opts)
     seeds = pruned.seeds(path, 0.0, 1.0, eps=0.05)
     # without the bounds every window is scored: the same seeds
-    full = IndexSearch(bank, opts, index=index, prune=False)
+    full = ScanSearch(bank, opts)
     full_seeds = full.seeds(path, 0.0, 1.0, eps=0.05)
     assert pruned.stats.scored < full.stats.scored  # (all but those out of time scale)
     assert seeds[0].prim == 5
@@ -193,12 +196,10 @@ def test_bad_input():
         segment_path(bank, pts[:, :2], DT, 0.1)
     with pytest.raises(InputError, match="rotation: expected one of full, z, none"):
         segment_path(bank, pts, DT, 0.1, rotation="xy")
-    with pytest.raises(InputError, match="search: expected one of index, scan, grid, loop"):
-        segment_path(bank, pts, DT, 0.1, search="magic")
     with pytest.raises(InputError, match="time_scale"):
         segment_path(bank, pts, DT, 0.1, time_scale=(2.0, 1.0))
     with pytest.raises(InputError, match="finite samples"):
         segment_path(bank, np.full((10, 3), np.nan), DT, 0.1)
-    empty = BankArrays(np.zeros((0, 3)), np.array([0]), DT, np.array([], int), ())
+    empty = Bank.from_samples([], DT)
     with pytest.raises(NoMatchError, match="no primitive stored"):
         segment_path(empty, pts, DT, 0.1)

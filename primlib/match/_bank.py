@@ -1,46 +1,102 @@
-"""Array views of a machine's primitives and cubic evaluation on uniform samples."""
+"""A machine's primitives made ready for matching: :class:`BankIndex`."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from primlib._errors import InputError, NoMatchError
+from primlib._errors import NoMatchError
+from primlib.defaults import MAX_ABS_VALUE
 
-__all__ = ["BankArrays", "as_bank", "cubic_at", "linear_at"]
+if TYPE_CHECKING:
+    from primlib.match._arc_index import ArcIndex
+    from primlib.store import Bank
+
+__all__ = ["BankIndex", "as_index"]
+
+# Finer arc-length indexes are capped at this many indexed points (memory ~ 100 B / point).
+_FINE_CAP = 4e6
 
 
-@dataclass(frozen=True)
-class BankArrays:
-    """All primitives of one machine on its sample grid, concatenated.
+class BankIndex:
+    """The primitives of one bank that can be matched, and the search's index over them.
+
+    Build it once per bank and pass it to :func:`primlib.match.match_path` (or
+    :func:`primlib.match.segment_path`) for every path matched against that bank: the
+    arc-length index (built on first use, ~0.2 s for 1,000 primitives of 2,000 samples) and
+    the finer indexes for short pieces are kept on this object, nowhere else. Not
+    thread-safe while it builds them; give each thread its own, or build them first.
+
+    A primitive that cannot be compared with others — a non-finite value, a coordinate
+    beyond :data:`primlib.defaults.MAX_ABS_VALUE` (so its second moments could overflow) or
+    fewer than 2 samples — is left out, with the reason in :attr:`skipped`, so one bad stored
+    primitive cannot break matching against the others.
+
+    Parameters
+    ----------
+    bank : primlib.store.Bank
+        A machine's primitives as flat arrays (``points`` (N, d), ``offsets`` (k + 1,),
+        ``dt``, ``ids``, ``names``; ``machine`` optional).
 
     Attributes
     ----------
-    points : array, shape (N, d)
-        Every primitive's samples at t = 0, dt, ..., T, one after another.
-    offsets : array of int, shape (k + 1,)
-        Primitive i is ``points[offsets[i]:offsets[i + 1]]``.
-    dt : float
-        Sample time (s).
-    ids : array of int, shape (k,)
-    names : tuple of str or None, length k
+    bank : primlib.store.Bank
+        The bank it was built from.
+    points, offsets, ids, names, dt
+        The usable primitives only, in the bank's order (``offsets`` re-based).
+    skipped : dict of int to str
+        Id of every left-out primitive and why.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from primlib.store import Bank
+    >>> t = np.linspace(0.0, 1.0, 50)[:, None]
+    >>> good = np.hstack([t, t**2, 0 * t])
+    >>> bank = Bank.from_samples([good, np.full((50, 3), 1e300)], dt=0.01)
+    >>> index = BankIndex(bank)
+    >>> index.k, index.skipped
+    (1, {1: 'coordinates beyond 1e+09 (largest magnitude 1e+300)'})
     """
 
-    points: np.ndarray
-    offsets: np.ndarray
-    dt: float
-    ids: np.ndarray
-    names: tuple
+    def __init__(self, bank: Bank | Any) -> None:
+        self.bank = bank
+        self.dt = float(bank.dt)
+        self.machine: str = getattr(bank, "machine", "") or ""
+        points = np.asarray(bank.points, dtype=float)
+        offsets = np.asarray(bank.offsets, dtype=np.int64)
+        ids = np.asarray(bank.ids, dtype=np.int64)
+        names = tuple(getattr(bank, "names", None) or (None,) * (len(offsets) - 1))
+        self._dim = int(points.shape[1]) if points.ndim == 2 else int(getattr(bank, "dim", 0))
+        reasons = _screen(points, offsets)
+        self.skipped: dict[int, str] = {int(ids[i]): reasons[i] for i in sorted(reasons)}
+        if reasons:
+            keep = np.array([i not in reasons for i in range(len(ids))])
+            counts = np.diff(offsets)[keep]
+            rows = np.repeat(keep, np.diff(offsets))
+            points = points[rows]
+            offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+            ids = ids[keep]
+            names = tuple(n for n, k in zip(names, keep, strict=True) if k)
+        self.points = points
+        self.offsets = offsets
+        self.ids = ids
+        self.names = names
+        self._arc: ArcIndex | None = None
+        self._fine: dict[int, ArcIndex] = {}
+        self._vmax: np.ndarray | None = None
+        self.index_seconds = 0.0
 
     @property
     def k(self) -> int:
+        """Number of usable primitives."""
         return len(self.offsets) - 1
 
     @property
     def dim(self) -> int:
-        return self.points.shape[1]
+        return self._dim
 
     @property
     def counts(self) -> np.ndarray:
@@ -51,89 +107,84 @@ class BankArrays:
         return (self.counts - 1) * self.dt
 
     def points_of(self, i: int) -> np.ndarray:
+        """Samples of usable primitive i (a row of this index, not an id), a view."""
         return self.points[self.offsets[i] : self.offsets[i + 1]]
 
-    @classmethod
-    def from_list(cls, pieces: list[np.ndarray], dt: float, ids=None, names=None) -> BankArrays:
-        """Build from a list of (n_i, d) sample arrays (tests and benchmarks)."""
-        counts = [len(p) for p in pieces]
-        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        ids = np.arange(len(pieces)) if ids is None else np.asarray(ids)
-        names = tuple(names) if names is not None else tuple(f"p{i}" for i in ids)
-        return cls(np.concatenate(pieces).astype(float), offsets, float(dt), ids, names)
+    def require(self) -> None:
+        """Raise :class:`NoMatchError` when nothing can be matched against this bank."""
+        if self.k > 0:
+            return
+        who = f"machine {self.machine!r}" if self.machine else "bank"
+        if not self.skipped:
+            raise NoMatchError(f"{who}: no primitive stored, nothing to match against")
+        pid, why = next(iter(self.skipped.items()))
+        raise NoMatchError(
+            f"{who}: no usable primitive, nothing to match against "
+            f"({len(self.skipped)} skipped; #{pid}: {why})"
+        )
+
+    def arc_index(self) -> ArcIndex:
+        """The arc-length index of the usable primitives (built on first call, then kept)."""
+        if self._arc is None:
+            import time
+
+            from primlib.match._arc_index import ArcIndex
+
+            t0 = time.perf_counter()
+            self._arc = ArcIndex.build(self)
+            self.index_seconds = time.perf_counter() - t0
+        return self._arc
+
+    def fine_arc_index(self, j: int) -> ArcIndex:
+        """An index 2ʲ times finer than :meth:`arc_index` (for pieces short in arc length),
+        built once; j is capped so it holds at most ~4 million points."""
+        from primlib.match._arc_index import ArcIndex
+
+        base = self.arc_index()
+        n0 = base.levels[0].pts.shape[0]
+        j = min(j, int(math.log2(max(_FINE_CAP / max(n0, 1), 1.0))))
+        if j <= 0:
+            return base
+        if j not in self._fine:
+            pps = n0 / max(self.points.shape[0], 1)
+            self._fine[j] = ArcIndex.build(self, points_per_sample=pps * 2**j)
+        return self._fine[j]
+
+    def max_step(self) -> np.ndarray:
+        """Largest distance between consecutive samples, per primitive, shape (k,)."""
+        if self._vmax is None:
+            step = np.linalg.norm(np.diff(self.points, axis=0), axis=1)
+            step[self.offsets[1:-1] - 1] = 0.0
+            self._vmax = np.maximum.reduceat(np.append(step, 0.0), self.offsets[:-1])
+        return self._vmax
+
+    def __repr__(self) -> str:
+        return f"BankIndex({self.machine!r}, {self.k} primitives, {len(self.skipped)} skipped)"
 
 
-def as_bank(bank: Any) -> BankArrays:
-    """Accept a :class:`BankArrays` or any object with the store's Bank attributes.
-
-    Raises
-    ------
-    NoMatchError
-        The bank holds no primitive (an empty library for this machine).
-    """
-    if isinstance(bank, BankArrays):
-        out = bank
-    else:
-        points = np.asarray(bank.points, dtype=float)
-        offsets = np.asarray(bank.offsets, dtype=np.int64)
-        names = tuple(getattr(bank, "names", None) or (None,) * (len(offsets) - 1))
-        out = BankArrays(points, offsets, float(bank.dt), np.asarray(bank.ids), names)
-    if out.k == 0:
-        raise NoMatchError("library: no primitive stored for this machine, nothing to match")
-    if np.any(out.counts < 2):
-        raise InputError("bank: every primitive needs at least 2 samples")
+def _screen(points: np.ndarray, offsets: np.ndarray) -> dict[int, str]:
+    """Row → reason for every primitive that cannot be matched (see :class:`BankIndex`)."""
+    counts = np.diff(offsets)
+    out = {int(i): f"{counts[i]} sample(s), 2 needed" for i in np.flatnonzero(counts < 2)}
+    if points.size == 0 or len(counts) == 0:
+        return out
+    starts = offsets[:-1][counts > 0]
+    rows = np.flatnonzero(counts > 0)
+    with np.errstate(invalid="ignore"):
+        mag = np.abs(points).max(axis=1)
+        finite = np.isfinite(points).all(axis=1)
+    bad_finite = np.minimum.reduceat(finite, starts) == 0
+    big = np.maximum.reduceat(np.where(finite, mag, 0.0), starts)
+    for j in np.flatnonzero(bad_finite | (big > MAX_ABS_VALUE)):
+        if bad_finite[j]:
+            out[int(rows[j])] = "non-finite coordinates (nan or inf)"
+        else:
+            out[int(rows[j])] = (
+                f"coordinates beyond {MAX_ABS_VALUE:.0e} (largest magnitude {big[j]:.3g})"
+            )
     return out
 
 
-def cubic_at(
-    points: np.ndarray,
-    start: np.ndarray,
-    count: np.ndarray,
-    x: np.ndarray,
-    derivative: bool = False,
-):
-    """Catmull-Rom interpolation of uniformly sampled curves at fractional sample indices.
-
-    Parameters
-    ----------
-    points : array, shape (N, d)
-        Concatenated samples.
-    start, count : array of int, broadcastable to x
-        First row and number of samples of the curve each query belongs to.
-    x : array, shape (m,)
-        Fractional sample index within its curve, clipped to [0, count - 1].
-
-    Returns
-    -------
-    array, shape (m, d)
-        Exact at samples, C¹ between them, third-order accurate (end neighbours clamped).
-    (array, array)
-        With ``derivative=True``: the values and d/dx (per sample index).
-    """
-    count = np.asarray(count)
-    x = np.clip(np.asarray(x, dtype=float), 0.0, count - 1)
-    i = np.minimum(np.floor(x).astype(np.int64), count - 2)
-    f = (x - i)[:, None]
-    last = count - 1
-    i0 = start + np.maximum(i - 1, 0)
-    i1 = start + i
-    i2 = start + i + 1
-    i3 = start + np.minimum(i + 2, last)
-    p0, p1, p2, p3 = points[i0], points[i1], points[i2], points[i3]
-    c1 = p2 - p0
-    c2 = 2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
-    c3 = 3.0 * (p1 - p2) + p3 - p0
-    val = p1 + 0.5 * f * (c1 + f * (c2 + f * c3))
-    if not derivative:
-        return val
-    return val, 0.5 * (c1 + f * (2.0 * c2 + 3.0 * f * c3))
-
-
-def linear_at(points: np.ndarray, start: np.ndarray, count: np.ndarray, x: np.ndarray):
-    """Linear interpolation, same arguments as :func:`cubic_at` (cheap, for indexing)."""
-    count = np.asarray(count)
-    x = np.clip(np.asarray(x, dtype=float), 0.0, count - 1)
-    i = np.minimum(np.floor(x).astype(np.int64), count - 2)
-    f = (x - i)[:, None]
-    p1 = points[start + i]
-    return p1 + f * (points[start + i + 1] - p1)
+def as_index(bank: Bank | BankIndex | Any) -> BankIndex:
+    """A :class:`BankIndex` as is, or a new one built from a bank."""
+    return bank if isinstance(bank, BankIndex) else BankIndex(bank)

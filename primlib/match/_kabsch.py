@@ -19,8 +19,9 @@ resolves an RMSD down to about 1e-8 of the pieces' size (round-off in the differ
 σ₃ as the square root of an eigenvalue of SᵀS would lose it already at 1e-4, which matters
 for planar pieces (σ₃ ≈ 0). :func:`kabsch` forms R by SVD for the few winners.
 
-Rotation modes: ``"full"`` (SO(d)), ``"z"`` (3-D only: rotation about the vertical z axis,
-so a 2-D Kabsch in the xy plane plus a z translation) and ``"none"`` (translation only).
+Rotation families (``rotation=``): ``"full"`` (SO(d)), ``"z"`` (3-D only: rotation about
+the vertical z axis, so a 2-D Kabsch in the xy plane plus a z translation) and ``"none"``
+(translation only).
 A 2-D machine uses 2-D rotations, so a mirrored planar curve is never a match.
 """
 
@@ -58,11 +59,11 @@ class KabschResult:
     rmsd: np.ndarray
 
 
-def _check_mode(mode: str, d: int) -> None:
-    if mode not in ROTATION_MODES:
-        raise InputError(f"rotation mode: expected one of full, z, none, got {mode!r}")
-    if mode == "z" and d != 3:
-        raise InputError(f"rotation mode 'z' needs 3-D points, got {d}-D")
+def _check_rotation(rotation: str, d: int) -> None:
+    if rotation not in ROTATION_MODES:
+        raise InputError(f"rotation: expected one of full, z, none, got {rotation!r}")
+    if rotation == "z" and d != 3:
+        raise InputError(f"rotation 'z' needs 3-D points, got {d}-D")
 
 
 def _rotation_2d(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -132,22 +133,49 @@ def _rotation_full(s: np.ndarray) -> np.ndarray:
     return r
 
 
-def rotation_for(s: np.ndarray, mode: str = "full") -> np.ndarray:
+def rotation_for(s: np.ndarray, rotation: str = "full") -> np.ndarray:
     """The optimal rotation (d, d) for one cross-covariance S = P̃ᵀ Q̃ (no checks; hot loops)."""
     d = s.shape[0]
-    if mode == "full":
+    if rotation == "full":
         return _rotation_full(s[None])[0]
     r = np.eye(d)
-    if mode == "z":
+    if rotation == "z":
         r[:2, :2] = _rotation_2d(np.array(s[0, 0] + s[1, 1]), np.array(s[0, 1] - s[1, 0]))
     return r
+
+
+def _pieces(P, Q, weights, rotation: str):
+    """Checked (k, n, d) float arrays, normalised weights (k, n), and whether the input
+    was a single pair."""
+    p = np.asarray(P, dtype=float)
+    q = np.asarray(Q, dtype=float)
+    single = p.ndim == 2
+    if p.shape != q.shape or p.ndim not in (2, 3) or p.shape[-1] not in (2, 3):
+        raise InputError(
+            f"kabsch: expected P and Q of equal shape (k, n, d) or (n, d) with d in 2 or 3, "
+            f"got {p.shape} and {q.shape}"
+        )
+    if p.shape[-2] < 1:
+        raise InputError("kabsch: expected at least one point per piece, got 0")
+    if single:
+        p, q = p[None], q[None]
+    k, n, d = p.shape
+    _check_rotation(rotation, d)
+    if weights is None:
+        w = np.full((k, n), 1.0 / n)
+    else:
+        w = np.broadcast_to(np.asarray(weights, dtype=float), (k, n)).copy()
+        if not np.all(np.isfinite(w)) or np.any(w < 0) or np.any(w.sum(axis=1) <= 0):
+            raise InputError("kabsch: expected finite non-negative weights, not all zero")
+        w /= w.sum(axis=1, keepdims=True)
+    return p, q, w, single
 
 
 def kabsch(
     P: np.ndarray,
     Q: np.ndarray,
     weights: np.ndarray | None = None,
-    mode: str = "full",
+    rotation: str = "full",
 ) -> KabschResult:
     """Optimal proper rotation and translation taking P onto Q, batched.
 
@@ -160,7 +188,7 @@ def kabsch(
         Moving and target point sets, d in {2, 3}, corresponding point by point.
     weights : array, shape (n,) or (k, n), optional
         Non-negative point weights (not all zero); uniform when None.
-    mode : {"full", "z", "none"}
+    rotation : {"full", "z", "none"}
         Rotation family: all proper rotations, rotations about the z axis (3-D only), or
         none (translation only).
 
@@ -175,7 +203,7 @@ def kabsch(
     Raises
     ------
     InputError
-        Shapes that differ or are not (k, n, d) with d in {2, 3}; an unknown mode; bad
+        Shapes that differ or are not (k, n, d) with d in {2, 3}; an unknown rotation; bad
         weights.
 
     References
@@ -189,36 +217,17 @@ def kabsch(
     >>> round(float(res.rmsd), 12)
     0.0
     """
-    p = np.asarray(P, dtype=float)
-    q = np.asarray(Q, dtype=float)
-    single = p.ndim == 2
-    if p.shape != q.shape or p.ndim not in (2, 3) or p.shape[-1] not in (2, 3):
-        raise InputError(
-            f"kabsch: expected P and Q of equal shape (k, n, d) or (n, d) with d in 2 or 3, "
-            f"got {p.shape} and {q.shape}"
-        )
-    if p.shape[-2] < 1:
-        raise InputError("kabsch: expected at least one point per piece, got 0")
-    if single:
-        p, q = p[None], q[None]
+    p, q, w, single = _pieces(P, Q, weights, rotation)
     k, n, d = p.shape
-    _check_mode(mode, d)
-    if weights is None:
-        w = np.full((k, n), 1.0 / n)
-    else:
-        w = np.broadcast_to(np.asarray(weights, dtype=float), (k, n)).copy()
-        if not np.all(np.isfinite(w)) or np.any(w < 0) or np.any(w.sum(axis=1) <= 0):
-            raise InputError("kabsch: expected finite non-negative weights, not all zero")
-        w /= w.sum(axis=1, keepdims=True)
     pc = np.einsum("kn,knd->kd", w, p)
     qc = np.einsum("kn,knd->kd", w, q)
     pt = p - pc[:, None, :]
     qt = q - qc[:, None, :]
     s = np.einsum("kn,kna,knb->kab", w, pt, qt)
     r = np.broadcast_to(np.eye(d), (k, d, d)).copy()
-    if mode == "full":
+    if rotation == "full":
         r = _rotation_full(s)
-    elif mode == "z":
+    elif rotation == "z":
         r[:, :2, :2] = _rotation_2d(s[:, 0, 0] + s[:, 1, 1], s[:, 0, 1] - s[:, 1, 0])
     t = qc - np.einsum("kab,kb->ka", r, pc)
     resid = q - (np.einsum("kab,knb->kna", r, p) + t[:, None, :])
@@ -280,7 +289,7 @@ def _qcp_lambda_max(s: np.ndarray, upper: np.ndarray) -> np.ndarray:
 
 
 def rmsd_from_moments(
-    s: np.ndarray, sp: np.ndarray, sq: np.ndarray, n: int, mode: str = "full"
+    s: np.ndarray, sp: np.ndarray, sq: np.ndarray, n: int, rotation: str = "full"
 ) -> np.ndarray:
     """Kabsch RMSD of many pairs from their centred moments, no rotation formed.
 
@@ -289,10 +298,11 @@ def rmsd_from_moments(
     s : array, shape (m, d, d)
         Cross-covariances S = P̃ᵀ Q̃ of centred pieces (moving P, target Q).
     sp, sq : array, shape (m,) or (m, d)
-        Σ|p̃|² and Σ|q̃|² — per axis (m, d) when ``mode="z"`` (the z column is needed apart).
+        Σ|p̃|² and Σ|q̃|² — per axis (m, d) when ``rotation="z"`` (the z column is needed
+        apart).
     n : int
         Points per piece, K.
-    mode : {"full", "z", "none"}
+    rotation : {"full", "z", "none"}
 
     Returns
     -------
@@ -300,15 +310,15 @@ def rmsd_from_moments(
         Eq. (2) of the module notes, clipped at 0 against round-off.
     """
     d = s.shape[-1]
-    _check_mode(mode, d)
-    if mode == "z":
+    _check_rotation(rotation, d)
+    if rotation == "z":
         sp = np.asarray(sp)
         sq = np.asarray(sq)
         best = np.hypot(s[:, 0, 0] + s[:, 1, 1], s[:, 0, 1] - s[:, 1, 0]) + s[:, 2, 2]
         total = sp.sum(axis=-1) + sq.sum(axis=-1)
     else:
         total = sp + sq
-        if mode == "none":
+        if rotation == "none":
             best = np.trace(s, axis1=1, axis2=2)
         elif d == 2:
             best = np.hypot(s[:, 0, 0] + s[:, 1, 1], s[:, 0, 1] - s[:, 1, 0])

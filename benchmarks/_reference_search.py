@@ -1,0 +1,78 @@
+"""Exhaustive references for the index search (tests and benchmarks only, not the product).
+
+``scan``
+    The index search's windows, every one scored: its lower bounds replaced by zero. Same
+    seeds as the pruned search whenever the bounds are bounds.
+``grid``
+    The time-uniform grid (``primlib.match._grid.GridSearch``) on every piece, not only on
+    pieces too short in arc length: every primitive × start × time scale, vectorised.
+``loop``
+    The grid's candidates, one ``kabsch`` call each and no pruning: the plain per-candidate
+    loop the benchmark times against.
+
+:func:`reference_segment_path` runs the production segmentation with one of them as the
+seed finder, so only the seeds differ.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from primlib.match import BankIndex, SearchOptions, kabsch
+from primlib.match._bank import as_index
+from primlib.match._grid import GridSearch
+from primlib.match._index_search import ArcQuery, IndexSearch
+from primlib.match._segment import resolve_options, segment_with
+
+__all__ = ["ScanSearch", "LoopSearch", "GridSearch", "reference_segment_path", "SEARCHES"]
+
+SEARCHES = ("scan", "grid", "loop")
+
+
+class ScanSearch(IndexSearch):
+    """The index search with every window scored (no lower-bound pruning)."""
+
+    name: ClassVar[str] = "scan"
+
+    def first_bound(self, aq: ArcQuery) -> np.ndarray:
+        return np.zeros(aq.n_windows)
+
+    def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
+        return np.zeros(ws.size)
+
+
+class _NamedGrid(GridSearch):
+    name: ClassVar[str] = "grid"
+
+
+class LoopSearch(GridSearch):
+    """The same grid as :class:`GridSearch`, one Kabsch call per candidate."""
+
+    name: ClassVar[str] = "loop"
+
+    def _score(self, res, starts, q, qc, sq, k, rotation, gate) -> np.ndarray:
+        self.stats.scored += starts.size
+        return np.array([kabsch(res[m : m + k], q, rotation=rotation).rmsd for m in starts])
+
+
+def reference_segment_path(
+    bank,
+    points: np.ndarray,
+    dt: float,
+    eps: float,
+    search: str,
+    *,
+    rotation: str = "full",
+    time_scale: tuple[float, float] | None = None,
+    min_step: float | None = None,
+    options: SearchOptions | None = None,
+):
+    """``segment_path`` with the seeds of reference ``search`` (one of :data:`SEARCHES`)."""
+    index: BankIndex = as_index(bank)
+    opts = resolve_options(rotation, time_scale, options)
+    kinds = {"scan": ScanSearch, "grid": _NamedGrid, "loop": LoopSearch}
+    if search not in kinds:
+        raise ValueError(f"search: expected one of {', '.join(SEARCHES)}, got {search!r}")
+    return segment_with(kinds[search](index, opts), index, points, dt, eps, opts, min_step)

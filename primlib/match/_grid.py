@@ -1,0 +1,138 @@
+"""The time-uniform grid search: seeds for pieces too short in arc length to index.
+
+Query sampled at K = ``grid_points`` (16) uniform-time points. Every primitive; every
+duration D = k·(query duration) for k on a geometric grid over ``time_scale`` with ratio at
+most ``scale_ratio`` (1.1, so 30 scales over 0.25–4); for each D the primitive is resampled
+at the stride h = D/(K − 1) and every start m·h (m = 0, 1, ...) is a candidate whose K points
+are K consecutive resampled points. The window second moments come from cumulative sums,
+the cross-covariances from one product over a strided window view, and the RMSD of every
+window that the radius-of-gyration bound (:func:`primlib.match._bounds.gyration_bound`)
+does not already put at or above its gate from ``rmsd_from_moments`` (no rotation formed).
+
+The index search falls back on it for (nearly) stationary or very short pieces; the tests
+and benchmarks also run it on whole paths as the exhaustive reference.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from primlib.match._bank import BankIndex
+from primlib.match._bounds import gyration_bound
+from primlib.match._interp import cubic_at
+from primlib.match._kabsch import rmsd_from_moments
+from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
+from primlib.match._pool import suppress
+
+__all__ = ["GridSearch", "scale_grid"]
+
+
+def scale_grid(lo: float, hi: float, ratio: float) -> np.ndarray:
+    """Geometric grid over [lo, hi] with neighbouring ratio at most ``ratio``."""
+    n = 1 + max(1, math.ceil(math.log(hi / lo) / math.log(ratio) - 1e-9)) if hi > lo else 1
+    return np.geomspace(lo, hi, n) if n > 1 else np.array([lo])
+
+
+def _cumsums(x: np.ndarray):
+    cs = np.zeros((x.shape[0] + 1, x.shape[1]))
+    np.cumsum(x, axis=0, out=cs[1:])
+    cs2 = np.zeros_like(cs)
+    np.cumsum(x * x, axis=0, out=cs2[1:])
+    return cs, cs2
+
+
+def _window_moments(cs: np.ndarray, cs2: np.ndarray, starts: np.ndarray, k: int, per_axis: bool):
+    """Σ|p − p̄|² of the windows [m, m + k) from cumulative sums (per axis if asked)."""
+    sx = cs[starts + k] - cs[starts]
+    sxx = cs2[starts + k] - cs2[starts]
+    sp = sxx - sx * sx / k
+    return sp if per_axis else sp.sum(axis=1)
+
+
+@dataclass
+class GridSearch:
+    """Exhaustive search on the documented (start, time scale) grid, vectorised."""
+
+    bank: BankIndex
+    opts: SearchOptions
+    stats: SearchStats = field(default_factory=SearchStats)
+
+    def _windows(self, path: PathPiece, a: float, b: float) -> Iterator[tuple]:
+        """Yield, per time scale, the resampled bank and its valid windows."""
+        bank, k = self.bank, self.opts.grid_points
+        dq = (b - a) * path.duration / bank.dt
+        counts = bank.counts
+        for scale in scale_grid(*self.opts.time_scale, self.opts.scale_ratio):
+            dur = scale * dq
+            h = dur / (k - 1)
+            ok = np.flatnonzero(counts - 1 >= dur - 1e-9)
+            if ok.size == 0 or h <= 0:
+                continue
+            n_start = np.floor((counts[ok] - 1 - dur) / h + 1e-9).astype(np.int64) + 1
+            n_res = n_start + k - 1
+            base = np.concatenate([[0], np.cumsum(n_res)])
+            prim = np.repeat(ok, n_res)
+            local = np.arange(base[-1]) - np.repeat(base[:-1], n_res)
+            res = cubic_at(bank.points, bank.offsets[prim], counts[prim], local * h)
+            first = np.concatenate([[0], np.cumsum(n_start)])
+            s_local = np.arange(first[-1]) - np.repeat(first[:-1], n_start)
+            starts = np.repeat(base[:-1], n_start) + s_local
+            s_prim = np.repeat(ok, n_start)
+            yield res, starts, s_prim, s_local * h, dur
+
+    def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        """Best distinct grid candidates that a continuous move within their cell could
+        bring below eps (Lipschitz gate, see :meth:`_slack`), best first."""
+        k, rotation = self.opts.grid_points, self.opts.rotation
+        q = path.at(np.linspace(a, b, k))
+        qc = q - q.mean(axis=0)
+        sq = (qc * qc).sum(axis=0) if rotation == "z" else float((qc * qc).sum())
+        pool: list[Candidate] = []
+        self.stats.queries += 1
+        for res, starts, s_prim, x0, dur in self._windows(path, a, b):
+            gate = eps + self._slack(s_prim, dur, k)
+            rmsd = self._score(res, starts, q, qc, sq, k, rotation, gate)
+            self.stats.windows += starts.size
+            ok = np.flatnonzero(rmsd < gate)
+            top = ok[np.argsort(rmsd[ok])[: 8 * self.opts.seeds]]
+            pool += [
+                Candidate(int(s_prim[t]), float(x0[t]), float(x0[t] + dur), float(rmsd[t]))
+                for t in top
+            ]
+        return suppress(pool, self.opts.seeds)
+
+    def _slack(self, prim: np.ndarray, dur: float, k: int) -> np.ndarray:
+        """Bound on how much the RMSD can drop inside a grid cell.
+
+        Moving the start by up to h/2 and the duration to a neighbouring scale (factor
+        √ratio) moves each of the K points by at most h/2 + D(√ratio − 1) samples, i.e. by
+        at most that times the largest step between samples (×1.25 for the cubic
+        interpolation's overshoot); the RMSD against a fixed query is 1-Lipschitz in the
+        RMS point displacement.
+        """
+        cell = dur / (k - 1) / 2.0 + dur * (math.sqrt(self.opts.scale_ratio) - 1.0)
+        return 1.25 * self.bank.max_step()[prim] * cell
+
+    def _score(self, res, starts, q, qc, sq, k, rotation, gate) -> np.ndarray:
+        """RMSD of every window that can pass ``gate``; +inf for the others, which the
+        radius-of-gyration bound |g(P) − g(Q)| ≤ rmsd proves to be at or above it."""
+        # centre per window via cumulative sums; the cross term needs no centring (Σ q̃ = 0)
+        res_c = res - res.mean(axis=0)
+        cs, cs2 = _cumsums(res_c)
+        per_axis = rotation == "z"
+        sp = _window_moments(cs, cs2, starts, k, per_axis=per_axis)
+        tot = sp.sum(axis=1) if per_axis else sp
+        live = np.flatnonzero(gyration_bound(tot, float(np.sum(sq)), k) < gate)
+        out = np.full(starts.size, np.inf)
+        self.stats.scored += live.size
+        if live.size:
+            win = sliding_window_view(res_c, k, axis=0)[starts[live]]  # (m, d, k)
+            s = np.einsum("mak,kb->mab", win, qc, optimize=True)
+            sp_l = sp[live]
+            out[live] = rmsd_from_moments(s, sp_l, np.broadcast_to(sq, sp_l.shape), k, rotation)
+        return out

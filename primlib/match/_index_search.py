@@ -1,0 +1,316 @@
+"""The index search: seeds for one piece of the path from the arc-length index.
+
+A *query* is the piece [a, b] (normalised time) of the new path; a *candidate* is a piece
+[x0, x1] (fractional sample indices) of a stored primitive. A candidate of duration
+(x1 − x0)·dt against a query of duration (b − a)·T has time scale
+k = (x1 − x0)·dt / ((b − a)·T), within ``time_scale``.
+
+A rigid motion and a change of time scale leave the arc-length shape of a piece unchanged, so
+the library is indexed once (:class:`~primlib.match._arc_index.ArcIndex`) by resampling every
+primitive at uniform arc length, a pyramid of steps Δ₀·2ʲ. A query of arc length ℓ is
+resampled at the spacing Δ that gives it 16–31 points; the candidates are the windows of that
+spacing starting at every point of the next finer level (dilated windows), so no duration
+grid is needed: a window's duration follows from its arc length, filtered to the time-scale
+range. Each window is scored by the Kabsch RMSD of its arc samples combined with ℓ times the
+RMS difference of the normalised time at the samples (the speed profile), and windows are
+scored best-first in order of provable lower bounds of that RMSD (:mod:`._bounds`: the
+half-window bound on every window, the principal-value bound on the survivors), exact float64
+scores only for what passes — until no unscored window's bound is below the pool's threshold
+(:mod:`._pool`) or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer level's step; a stored
+copy starts within Δ_b/2 of a window). The pool is re-scored at sub-step shifts of its
+windows' starts (a copy is then within Δ_b/8 of a shift); the best ``seeds`` distinct
+windows, and every other one within √2·(3ε + Δ_b/8) of the best, become the seeds, which the
+exact check (:mod:`._segment`) decides between.
+
+The gate is a heuristic, not a theorem: a copy within ε in uniform time can have a longer arc
+than ε allows for when the path wiggles fast (tests/test_match_heuristics.py: a period of 3
+samples at RMS 0.7ε breaks it; 4 samples does not). The exhaustive references (every window
+scored; the time-uniform grid) live in ``benchmarks/_reference_search.py`` and the tests
+compare them with this search.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from primlib.match._arc_index import ArcIndex, Level
+from primlib.match._bank import BankIndex
+from primlib.match._bounds import (
+    QueryMoments,
+    half_bound_margin,
+    half_window_bound,
+    principal_bound,
+)
+from primlib.match._grid import GridSearch
+from primlib.match._kabsch import rmsd_from_moments
+from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
+from primlib.match._pool import CandidatePool, best_and_ties, suppress
+
+__all__ = ["IndexSearch", "ArcQuery"]
+
+_SHIFTS = np.linspace(-0.5, 0.5, 5)  # sub-step re-scoring of the pool, in base steps
+
+
+@dataclass(frozen=True)
+class ArcQuery:
+    """One query resampled at uniform arc length, and the index level it is searched on.
+
+    ``k`` arc samples at spacing ``step`` (= ``level.step · dil``); windows start at every
+    point of ``level`` and take every ``dil``-th point (``span`` points in all).
+    """
+
+    index: ArcIndex
+    jb: int
+    level: Level
+    dil: int
+    step: float
+    ell: float
+    u: np.ndarray  # (k,) normalised time of the arc samples within [0, 1]
+    qc: np.ndarray  # (k, d) centred arc samples
+    sq: np.ndarray | float  # Σ|q̃|², per axis for rotation "z"
+    moments: QueryMoments
+    duration: float  # query duration in stored samples
+    per_axis: bool
+
+    @property
+    def k(self) -> int:
+        return self.qc.shape[0]
+
+    @property
+    def span(self) -> int:
+        return (self.k - 1) * self.dil + 1
+
+    @property
+    def n_windows(self) -> int:
+        return self.level.pts.shape[0] - self.span + 1
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Normalised time within the piece at each arc sample (the speed profile)."""
+        return (self.u - self.u[0]) / max(self.u[-1] - self.u[0], 1e-300)
+
+
+@dataclass
+class IndexSearch:
+    """Seeds from the arc-length index with provable lower-bound pruning (module notes)."""
+
+    bank: BankIndex
+    opts: SearchOptions
+    target_points: int = 16
+    phase_bits: int = 1
+    pool: int = 2
+    pool_cap: int = 48
+    chunk: int = 8192
+    stats: SearchStats = field(default_factory=SearchStats)
+    name: ClassVar[str] = "index"
+
+    def __post_init__(self) -> None:
+        self._grid = GridSearch(self.bank, self.opts, self.stats)
+
+    def _index_for(self, ell: float) -> ArcIndex:
+        """The index, or a finer one for pieces short in arc length (~16 arc samples)."""
+        idx = self.bank.arc_index()
+        need = (self.target_points - 1) * idx.step0 / max(ell, 1e-300)
+        if need <= 1.0:
+            return idx
+        return self.bank.fine_arc_index(math.ceil(math.log2(need)))
+
+    def arc_query(self, path: PathPiece, a: float, b: float) -> ArcQuery | None:
+        """The piece [a, b] at uniform arc length; None when it is too short to index."""
+        n_dense = max(64, int(round((b - a) * (path.n - 1))) * 2 + 1)
+        dense = path.at(np.linspace(a, b, n_dense))
+        chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
+        ell = float(chord[-1])
+        idx = self._index_for(ell)
+        if ell < 3.0 * idx.step0:
+            return None
+        # spacing Δ_j gives target..2·target arc samples; window starts on the finer level
+        # j − phase_bits (windows then take every dil-th point), so a stored copy starts
+        # within Δ_j / (2·dil) of some window
+        top = len(idx.levels) - 1
+        j = int(np.clip(np.floor(np.log2(ell / (idx.step0 * (self.target_points - 1)))), 0, top))
+        jb = max(j - self.phase_bits, 0)
+        lv = idx.levels[jb]
+        dil = 1 << (j - jb)
+        step = lv.step * dil
+        k = int(np.floor(ell / step + 1e-9)) + 1
+        s = np.arange(k) * step
+        t_dense = np.linspace(0.0, 1.0, n_dense)
+        u = np.interp(s, chord + np.arange(n_dense) * 1e-15 * max(ell, 1.0), t_dense)
+        q = path.at(a + (b - a) * u)
+        qc = q - q.mean(axis=0)
+        per_axis = self.opts.rotation == "z"
+        sq = (qc * qc).sum(axis=0) if per_axis else float((qc * qc).sum())
+        dq = (b - a) * path.duration / self.bank.dt
+        return ArcQuery(idx, jb, lv, dil, step, ell, u, qc, sq, QueryMoments.of(qc), dq, per_axis)
+
+    def first_bound(self, aq: ArcQuery) -> np.ndarray:
+        """Half-window lower bound of every window's shape RMSD (:mod:`._bounds`)."""
+        psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
+        margin = half_bound_margin(aq.k, aq.qc.shape[1], pmax, radius)
+        return half_window_bound(psum, aq.n_windows, aq.dil, aq.moments, margin)
+
+    def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
+        """Principal-value lower bound of the shape RMSD of windows ``ws``."""
+        psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
+        return principal_bound(psum, ws, aq.dil, aq.moments, pmax, radius)
+
+    def in_range(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mask of windows ``ws`` whose time scale is in range, and their end sample index.
+
+        A window's duration follows from its arc length (10 % slack: the refinement enforces
+        the range exactly). The end lies ell / step level points on, in the same primitive
+        unless near its end.
+        """
+        lv = aq.level
+        e = ws + aq.ell / lv.step
+        i0 = np.minimum(np.floor(e).astype(np.int64), lv.pts.shape[0] - 2)
+        f = e - i0
+        inside = lv.prim[np.minimum(i0 + 1, lv.pts.shape[0] - 1)] == lv.prim[ws]
+        x_end = lv.x[i0] + f * (lv.x[i0 + 1] - lv.x[i0])
+        if not np.all(inside):
+            x_end[~inside] = aq.index.arc_to_sample(lv.garc[ws[~inside]] + aq.ell)
+        scale = (x_end - lv.x[ws]) / aq.duration
+        lo, hi = self.opts.time_scale
+        return (scale >= lo / 1.1) & (scale <= hi * 1.1), x_end
+
+    def _combine(self, aq: ArcQuery, shape: np.ndarray, xw: np.ndarray) -> np.ndarray:
+        """Shape RMSD combined with ℓ·(RMS normalised-time error at the arc samples).
+
+        A normalised-time error δτ at an arc sample moves the uniform-time sample by about
+        ℓ·δτ along the curve: adding it ranks pieces of the same shape traversed with another
+        speed profile below the right one (never below the shape RMSD, so the lower bounds
+        still hold).
+        """
+        tau_q = aq.tau
+        dur = xw[:, -1] - xw[:, 0]
+        still = dur <= 1e-9  # a stationary stretch: no speed profile to compare
+        tau_w = (xw - xw[:, :1]) / np.where(still, 1.0, dur)[:, None]
+        tau_w[still] = tau_q
+        return np.hypot(shape, aq.ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1)))
+
+    def score(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact (combined score, shape RMSD) of the windows starting at ``ws``, float64.
+
+        One matrix product for all cross-covariances of the gathered windows (m, d, k); no
+        window centring is needed since Σ q̃ = 0.
+        """
+        lv, k, span, dil = aq.level, aq.k, aq.span, aq.dil
+        win = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil][ws]
+        pc = win - win.mean(axis=2, keepdims=True)
+        sp = np.einsum("mak,mak->ma", pc, pc)
+        if not aq.per_axis:
+            sp = sp.sum(axis=1)
+        d = aq.qc.shape[1]
+        s_ = (win.reshape(-1, k) @ aq.qc).reshape(ws.size, d, d)
+        sq_ = np.broadcast_to(aq.sq, (ws.size, 3)) if aq.per_axis else aq.sq
+        shape = rmsd_from_moments(s_, sp, sq_, k, self.opts.rotation)
+        xw = sliding_window_view(lv.x, span)[:, ::dil][ws]
+        return self._combine(aq, shape, xw), shape
+
+    def score_shifted(self, aq: ArcQuery, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Combined scores of windows starting at fractional level positions (linear
+        between arc samples) and their start sample index; +inf where a window leaves its
+        primitive."""
+        lv, k = aq.level, aq.k
+        pos = start[:, None] + np.arange(k) * aq.dil
+        i0 = np.clip(np.floor(pos).astype(np.int64), 0, lv.pts.shape[0] - 2)
+        f = np.clip(pos - i0, 0.0, 1.0)
+        ok = (start >= 0) & (lv.prim[i0[:, 0]] == lv.prim[i0[:, -1] + 1])
+        pts = lv.pts[i0] * (1.0 - f[..., None]) + lv.pts[i0 + 1] * f[..., None]
+        pc = pts - pts.mean(axis=1, keepdims=True)
+        s_ = np.einsum("mka,kb->mab", pc, aq.qc)
+        sp_ = (pc * pc).sum(axis=1) if aq.per_axis else (pc * pc).sum(axis=(1, 2))
+        sq_ = np.broadcast_to(aq.sq, (start.size, 3)) if aq.per_axis else aq.sq
+        xw = lv.x[i0] * (1.0 - f) + lv.x[i0 + 1] * f
+        r = self._combine(aq, rmsd_from_moments(s_, sp_, sq_, k, self.opts.rotation), xw)
+        return np.where(ok, r, np.inf), xw[:, 0]
+
+    def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        """Best distinct arc-window candidates below the gate 3·eps + Δ, best first.
+
+        A stored copy of the query starts within Δ/2 of arc length of some window start,
+        which moves each arc sample by at most Δ/2 in space and in ℓ·τ: its window scores
+        below √2·Δ/2 plus the copy's own deviation (a few eps at most for a match within
+        eps).
+        """
+        aq = self.arc_query(path, a, b)
+        if aq is None:
+            # a (nearly) stationary or very short piece: arc length cannot place it
+            return self._grid.seeds(path, a, b, eps)
+        if aq.n_windows <= 0:
+            return []
+        # a stored copy starts within half a base step of some window start, which moves
+        # every arc sample by at most that: its window's shape RMSD is below the gate
+        gate = 3.0 * eps + 0.5 * aq.level.step * (1.0 + 1e-6)
+        lb1 = self.first_bound(aq)
+        # chord lengths under-estimate arc length a little (more for the stored samples than
+        # for the densely sampled query): let a piece reach a primitive's very end
+        valid = aq.level.left[: aq.n_windows] >= aq.ell - max(aq.step, 0.02 * aq.ell)
+        self.stats.queries += 1
+        self.stats.windows += int(np.count_nonzero(valid))
+        w = np.flatnonzero(valid & (lb1 < gate * (1 + 1e-9)))
+        self.stats.bounded += w.size
+        if w.size == 0:
+            return []
+        pool, where = self._best_first(aq, w, lb1[w], gate)
+        if not pool:
+            return []
+        return self._reshift(aq, pool, where, eps)
+
+    def _best_first(self, aq: ArcQuery, w: np.ndarray, lbw: np.ndarray, gate: float):
+        """Score windows ``w`` in increasing order of bound 1 (bound 2 on each chunk, exact
+        scores for what passes) until the next bound reaches the pool's threshold: the pool
+        is then exactly the best distinct windows of scoring every window."""
+        lv = aq.level
+        pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, gate,
+                             math.sqrt(2.0) * gate)  # fmt: skip
+        where: dict[tuple[int, float], int] = {}
+        cand = np.argsort(lbw, kind="stable")
+        pos = 0
+        while pos < cand.size and lbw[cand[pos]] < pool.threshold:
+            todo = cand[pos : pos + self.chunk]
+            todo = todo[lbw[todo] < pool.threshold]
+            pos += self.chunk
+            todo = todo[self.second_bound(aq, w[todo]) < pool.threshold]
+            ok_range, x_end = self.in_range(aq, w[todo])
+            todo, x_end = todo[ok_range], x_end[ok_range]
+            r, shape = self.score(aq, w[todo])
+            self.stats.scored += todo.size
+            ok = np.flatnonzero(shape < gate)
+            new = []
+            for t in ok[np.argsort(r[ok])[: self.pool_cap]]:
+                m = int(w[todo[t]])
+                c = Candidate(int(lv.prim[m]), float(lv.x[m]), float(x_end[t]), float(r[t]))
+                where[(c.prim, c.x0)] = m
+                new.append(c)
+            pool.offer(new)
+        return pool.items, where
+
+    def _reshift(self, aq: ArcQuery, pool: list[Candidate], where: dict, eps: float):
+        """Re-score the pool at sub-step shifts of its starts (the window grid puts a stored
+        copy up to half a base step from a window start), keep each window's best; the best
+        ``seeds`` and every window within √2·(3·eps + Δ_b/8) of the best are the seeds."""
+        base = np.array([where[(c.prim, c.x0)] for c in pool], dtype=float)
+        r, x0 = self.score_shifted(aq, (base[:, None] + _SHIFTS).ravel())
+        r, x0 = r.reshape(len(pool), -1), x0.reshape(len(pool), -1)
+        best = np.argmin(r, axis=1)
+        g0 = aq.level.garc[base.astype(np.int64)] + _SHIFTS[best] * aq.level.step
+        x_end = aq.index.arc_to_sample(g0 + aq.ell)
+        kept = suppress(
+            [
+                Candidate(c.prim, float(x0[i, best[i]]), float(x_end[i]), float(r[i, best[i]]))
+                for i, c in enumerate(pool)
+                if np.isfinite(r[i, best[i]])
+            ],
+            self.pool_cap,
+        )
+        # a stored copy now starts within an eighth of a base step of a shift: it scores
+        # below √2·(3·eps + Δ_b/8); every window within that of the best may be it
+        width = math.sqrt(2.0) * (3.0 * eps + 0.125 * aq.level.step)
+        return best_and_ties(kept, self.opts.seeds, width)

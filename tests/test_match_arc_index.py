@@ -1,0 +1,63 @@
+"""The arc-length index: uniform arc spacing, arc -> sample, cached prefix sums."""
+
+import numpy as np
+import pytest
+
+from primlib.match import BankIndex
+from primlib.match._bounds import strided_prefix_sums
+from primlib.store import Bank
+
+
+def _index(n: int = 2001) -> BankIndex:
+    t = np.linspace(0, 1, n)
+    circle = np.stack([np.cos(2 * np.pi * t), np.sin(2 * np.pi * t), 0 * t], 1) * 10
+    line = np.stack([t, 2 * t, 2 * t], 1) * 30  # length 90
+    return BankIndex(Bank.from_samples([circle, line], 0.01))
+
+
+def test_level_zero_is_uniform_in_arc_length():
+    bank = _index()
+    idx = bank.arc_index()
+    lv = idx.levels[0]
+    for prim, length in ((0, 20 * np.pi), (1, 90.0)):
+        pts = lv.pts[lv.prim == prim]
+        gaps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        # chords of arcs of length step0 on a circle of radius 10: shorter by < step0³/(24·r²)
+        np.testing.assert_allclose(gaps, idx.step0, rtol=1e-3)
+        assert len(pts) == int(np.floor(length * (1 - 1e-6) / idx.step0)) + 1
+        np.testing.assert_allclose(pts.mean(axis=0), 0.0, atol=1e-9 * length)  # centred
+
+
+def test_levels_halve_and_double_the_step():
+    idx = _index().arc_index()
+    for a, b in zip(idx.levels[:-1], idx.levels[1:], strict=True):
+        assert b.step == 2 * a.step
+        assert abs(len(b.pts) - len(a.pts) / 2) <= 2
+
+
+def test_arc_to_sample_follows_the_line_at_constant_speed():
+    bank = _index()
+    idx = bank.arc_index()
+    lv = idx.levels[0]
+    on_line = np.flatnonzero(lv.prim == 1)
+    g = lv.garc[on_line]
+    x = idx.arc_to_sample(g)
+    # the line runs at constant speed: sample index proportional to arc length
+    # (the global arc axis adds 1e-12·step per sample to stay strictly increasing)
+    np.testing.assert_allclose(x, (g - g[0]) / 90.0 * 2000, atol=1e-5)
+
+
+def test_sums_are_cached_on_the_index():
+    idx = _index().arc_index()
+    a = idx.sums(0, 2)
+    assert idx.sums(0, 2) is a
+    np.testing.assert_array_equal(a[0], strided_prefix_sums(idx.levels[0].pts, 2)[0])
+
+
+def test_fine_index_is_built_once_and_capped():
+    bank = _index()
+    fine = bank.fine_arc_index(2)
+    assert bank.fine_arc_index(2) is fine
+    # 4x the points of the base level 0 (which has one point per step plus the ends)
+    assert fine.step0 == pytest.approx(bank.arc_index().step0 / 4, rel=0.01)
+    assert bank.fine_arc_index(0) is bank.arc_index()

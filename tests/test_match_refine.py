@@ -1,0 +1,79 @@
+"""Gauss–Newton refinement of a candidate's start and end, the 2-unknown box QP, clamping."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import minimize
+from scipy.spatial.transform import Rotation
+
+from primlib.match import BankIndex
+from primlib.match._options import Candidate, PathPiece, SearchOptions
+from primlib.match._refine import _AMAT, clamp, piece_rmsd, refine, solve_box_qp2
+from primlib.store import Bank
+
+DT = 0.01
+
+
+def _bank() -> BankIndex:
+    t = np.linspace(0, 1, 400)[:, None]
+    f = np.arange(1, 5)[None, :]
+    rng = np.random.default_rng(0)
+    pieces = [np.stack([np.sin(2 * np.pi * f * t + rng.uniform(0, 6, 4)).sum(1) * 20
+                        for _ in range(3)], axis=1) for _ in range(2)]  # fmt: skip
+    return BankIndex(Bank.from_samples(pieces, DT))
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_box_qp_matches_a_general_solver(seed):
+    rng = np.random.default_rng(seed)
+    m = rng.normal(size=(2, 2))
+    h = m @ m.T + 0.1 * np.eye(2)
+    g = rng.normal(size=2) * 10
+    z = np.array([rng.uniform(0, 50), 0.0])
+    z[1] = z[0] + rng.uniform(5, 20)
+    c = np.array([0.0, 100.0, -rng.uniform(1, 5), rng.uniform(20, 40)])
+    step = solve_box_qp2(h, g, z, _AMAT, c)
+
+    def f(d):
+        return 0.5 * d @ h @ d - g @ d
+
+    cons = {"type": "ineq", "fun": lambda d: c - _AMAT @ (z + d)}
+    ref = minimize(f, np.zeros(2), constraints=[cons], method="SLSQP", tol=1e-12)
+    assert np.all(_AMAT @ (z + step) <= c + 1e-7 * (1 + np.abs(c)))
+    assert f(step) <= ref.fun + 1e-6 * (1 + abs(ref.fun))
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+def test_refine_recovers_the_cut_from_a_nearby_seed(rotation):
+    bank = _bank()
+    x0, x1 = 60.0, 260.0
+    n_q = 151  # the piece played at time scale (x1 - x0) / 150
+    p = bank.points_of(1)
+    from primlib.match._interp import cubic_at
+
+    q = cubic_at(p, 0, len(p), np.linspace(x0, x1, n_q))
+    if rotation != "none":
+        r = Rotation.from_euler("z", 40, degrees=True).as_matrix()
+        q = q @ r.T
+    q = q + 5.0
+    path = PathPiece(q, (n_q - 1) * DT)
+    opts = SearchOptions(rotation=rotation)
+    seed = Candidate(1, x0 + 4.0, x1 - 6.0, 0.0)
+    before = piece_rmsd(bank, seed, path, 0.0, 1.0, n_q, rotation).rmsd
+    out = refine(bank, seed, path, 0.0, 1.0, opts)
+    after = piece_rmsd(bank, out, path, 0.0, 1.0, n_q, rotation).rmsd
+    assert before > 0.1
+    assert after < 1e-4 * before
+    assert out.x0 == pytest.approx(x0, abs=0.05) and out.x1 == pytest.approx(x1, abs=0.05)
+
+
+def test_clamp_keeps_the_duration_in_range_and_inside_the_primitive():
+    bank = _bank()
+    opts = SearchOptions(time_scale=(0.5, 2.0))
+    # query lasting 1 s = 100 samples: durations 50..200 samples allowed
+    c = clamp(bank, Candidate(0, 350.0, 390.0, 0.0), 1.0, opts)
+    assert c.x1 - c.x0 == pytest.approx(50.0) and c.x1 <= 399.0
+    c = clamp(bank, Candidate(0, -3.0, 300.0, 0.0), 1.0, opts)
+    assert c.x0 == 0.0 and c.x1 == pytest.approx(200.0)
