@@ -141,6 +141,54 @@ class Bank:
     load_signals: Callable[[], np.ndarray] | None = field(default=None, repr=False)
     _signals: list[np.ndarray] = field(default_factory=list, repr=False)
 
+    @classmethod
+    def from_samples(
+        cls,
+        pieces: list[np.ndarray],
+        dt: float,
+        ids: Any = None,
+        names: Any = None,
+        machine: str = "",
+    ) -> Bank:
+        """A bank of sampled paths only (arrays from elsewhere, tests, benchmarks).
+
+        It has no NURBS definitions (``trajectory`` is unavailable) and no signals.
+
+        Parameters
+        ----------
+        pieces : list of array, shape (n_i, d)
+            Each primitive's path at t = 0, dt, ...
+        dt : float
+        ids : array of int, optional
+            Default 0, 1, ...
+        names : sequence of str, optional
+            Default ``p<id>``.
+        machine : str, optional
+        """
+        counts = [len(p) for p in pieces]
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        ids = np.arange(len(pieces)) if ids is None else np.asarray(ids)
+        names = tuple(names) if names is not None else tuple(f"p{i}" for i in ids)
+        d = int(pieces[0].shape[1]) if pieces else 3
+        points = np.concatenate(pieces).astype(float) if pieces else np.zeros((0, d))
+        zero = np.zeros(len(pieces) + 1, dtype=np.int64)
+        return cls(
+            machine=machine,
+            dt=float(dt),
+            dim=d,
+            ids=ids.astype(np.int64),
+            names=names,
+            durations=(np.asarray(counts, dtype=float) - 1) * float(dt),
+            offsets=offsets,
+            points=points,
+            degrees=np.zeros(len(pieces), dtype=np.int64),
+            knots=np.zeros(0),
+            knot_offsets=zero,
+            ctrlpts=np.zeros((0, d)),
+            weights=np.zeros(0),
+            ctrl_offsets=zero,
+        )
+
     @property
     def signals(self) -> np.ndarray:
         """Every primitive's signal, concatenated, shape (N, d) (read once, then kept)."""
