@@ -188,3 +188,62 @@ def test_batched_shapes():
 def test_bad_input(kw, msg):
     with pytest.raises(InputError, match=msg):
         kabsch(**kw)
+
+
+def _moments_rmsd(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    pc = p - p.mean(axis=-2, keepdims=True)
+    qc = q - q.mean(axis=-2, keepdims=True)
+    s = np.einsum("kna,knb->kab", pc, qc)
+    return rmsd_from_moments(s, (pc**2).sum(axis=(1, 2)), (qc**2).sum(axis=(1, 2)), p.shape[1])
+
+
+def test_rmsd_from_moments_on_a_straight_3d_piece():
+    # issue 12: the largest root of Horn's quartic is double; Newton froze at 0.2828
+    s = np.linspace(-1, 1, 50)[:, None]
+    p = s * np.array([1.0, 2.0, 2.0]) / 3
+    q = s * np.array([0.0, 0.0, 1.0])
+    got = rmsd_from_moments((p.T @ q)[None], np.array([(p**2).sum()]), np.array([(q**2).sum()]), 50)
+    # eq. (2) resolves an RMSD to √u of the radius (0.58 here): 1e-7 is round-off
+    assert got[0] < 1e-7
+    assert kabsch(p, q).rmsd < 1e-12
+
+
+def _piece(kind: str, rng, n: int) -> np.ndarray:
+    s = np.linspace(-1, 1, n)[:, None]
+    direction = rng.normal(size=3)
+    if kind == "point":
+        return np.tile(rng.normal(size=3), (n, 1))
+    if kind == "line":
+        return s * direction
+    if kind == "plane":
+        p = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+        p[:, 2] = 0.0
+        return p @ Rotation.random(random_state=int(rng.integers(2**31))).as_matrix().T
+    return np.cumsum(rng.normal(size=(n, 3)), axis=0)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    seed=seeds,
+    n=st.integers(3, 60),
+    kind=st.sampled_from(["point", "line", "plane", "curve"]),
+    noise=st.sampled_from([0.0, 1e-12, 1e-9, 1e-7, 1e-5, 1e-3, 1e-1]),
+    same=st.booleans(),
+)
+def test_rmsd_from_moments_equals_kabsch_on_degenerate_pieces(seed, n, kind, noise, same):
+    # random orientations of (nearly) degenerate pieces, and the same piece rotated
+    rng = np.random.default_rng(seed)
+    p = _piece(kind, rng, n) * rng.uniform(0.01, 100.0)
+    q = p if same else _piece(kind, rng, n) * rng.uniform(0.01, 100.0)
+    q = q @ Rotation.random(random_state=seed).as_matrix().T + rng.normal(size=3)
+    size = np.abs(p).max() + np.abs(q).max()
+    p = p + rng.normal(size=p.shape) * noise * size
+    q = q + rng.normal(size=q.shape) * noise * size
+    fast = _moments_rmsd(p[None], q[None])[0]
+    slow = kabsch(p, q).rmsd
+    # eq. (2) subtracts energies: round-off of a few hundred ulps of Σ|p̃|² + Σ|q̃|², per
+    # point; kabsch's residual carries a few ulps of the coordinates (a point piece: only that)
+    pc, qc = p - p.mean(axis=0), q - q.mean(axis=0)
+    energy = ((pc**2).sum() + (qc**2).sum()) / n
+    e = 64 * 2.2e-16 * size
+    assert abs(fast**2 - slow**2) <= 1e-13 * energy + 2 * slow * e + e * e

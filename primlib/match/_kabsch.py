@@ -40,6 +40,9 @@ ROTATION_MODES = ("full", "z", "none")
 # Relative size below which a singular value of S counts as zero (degenerate pieces: a
 # straight line has rank-1 S, a point rank 0); then the rotation is chosen canonically.
 _RANK_TOL = 1e-9
+# ... and the canonical rotation is used only where it loses at most this much of tr(R S),
+# relative to σ₁ (~45 ulps): for an exact line nothing, for a nearly straight one too much.
+_CANON_LOSS = 1e-14
 
 
 @dataclass(frozen=True)
@@ -127,8 +130,14 @@ def _rotation_full(s: np.ndarray) -> np.ndarray:
     rank0 = top <= 0.0
     rank1 = ~rank0 & (sig[:, 1] <= _RANK_TOL * top)
     if np.any(rank1):
-        # a straight-line piece: every rotation about the line is optimal; take the least turn
-        r[rank1] = _minimal_rotation(u[rank1, :, 0], v[rank1, :, 0])
+        # a straight-line piece: every rotation about the line is optimal; take the least
+        # turn, unless that costs more than round-off (a nearly straight piece, whose small
+        # singular values still decide the best rotation about the line)
+        idx = np.flatnonzero(rank1)
+        r_min = _minimal_rotation(u[idx, :, 0], v[idx, :, 0])
+        loss = np.einsum("kab,kba->k", r[idx] - r_min, s[idx])
+        same = loss <= _CANON_LOSS * top[idx]
+        r[idx[same]] = r_min[same]
     r[rank0] = np.eye(d)
     return r
 
@@ -237,14 +246,9 @@ def kabsch(
     return KabschResult(r, t, rmsd)
 
 
-def _qcp_lambda_max(s: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """Largest eigenvalue of Horn's quaternion matrix for S (m, 3, 3) = max tr(R S) over SO(3).
-
-    Newton's method on the characteristic polynomial λ⁴ + C₂λ² + C₁λ + C₀ started from the
-    upper bound (|P̃|² + |Q̃|²)/2, from which it decreases monotonically to the largest root
-    (Theobald, Acta Cryst. A61 (2005) 478, eqs. 10-14; coefficients checked against
-    ``eigvalsh`` of the 4 × 4 matrix in the tests).
-    """
+def _qcp_coefficients(s: np.ndarray):
+    """C₂, C₁, C₀ of the characteristic polynomial λ⁴ + C₂λ² + C₁λ + C₀ of Horn's matrix
+    (Theobald, Acta Cryst. A61 (2005) 478, eqs. 10-14)."""
     sxx, sxy, sxz = s[:, 0, 0], s[:, 0, 1], s[:, 0, 2]
     syx, syy, syz = s[:, 1, 0], s[:, 1, 1], s[:, 1, 2]
     szx, szy, szz = s[:, 2, 0], s[:, 2, 1], s[:, 2, 2]
@@ -272,19 +276,60 @@ def _qcp_lambda_max(s: np.ndarray, upper: np.ndarray) -> np.ndarray:
         + (sxypsyx * syzmszy + sxzmszx * (sxxmsyy - szz))
         * (-sxymsyx * syzpszy + sxzmszx * (sxxpsyy - szz))
     )
+    return c2, c1, c0
+
+
+def _horn_matrix(s: np.ndarray) -> np.ndarray:
+    """Horn's symmetric 4 × 4 quaternion matrix N(S), shape (m, 4, 4): its largest
+    eigenvalue is max tr(R S) over SO(3) (Horn, J. Opt. Soc. Am. A 4 (1987) 629)."""
+    sxx, sxy, sxz = s[:, 0, 0], s[:, 0, 1], s[:, 0, 2]
+    syx, syy, syz = s[:, 1, 0], s[:, 1, 1], s[:, 1, 2]
+    szx, szy, szz = s[:, 2, 0], s[:, 2, 1], s[:, 2, 2]
+    rows = [
+        [sxx + syy + szz, syz - szy, szx - sxz, sxy - syx],
+        [syz - szy, sxx - syy - szz, sxy + syx, szx + sxz],
+        [szx - sxz, sxy + syx, -sxx + syy - szz, syz + szy],
+        [sxy - syx, szx + sxz, syz + szy, -sxx - syy + szz],
+    ]
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def _qcp_lambda_max(s: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Largest eigenvalue of Horn's quaternion matrix for S (m, 3, 3) = max tr(R S) over SO(3).
+
+    Newton's method on the characteristic polynomial (:func:`_qcp_coefficients`) started
+    from the upper bound (|P̃|² + |Q̃|²)/2, from which it decreases monotonically to the
+    largest root (f is convex there: f'' > 0 beyond ‖S‖_F/√3 ≤ σ₁ ≤ λ_max). Fast, but
+    ill-conditioned where the largest root is (nearly) double — straight or nearly straight
+    pieces, points — since f and f' are then at round-off and the root is resolved only to
+    √u of its size. Those (f' < 0.05·λ³ at the end, i.e. the next root within ~1 % of λ, or
+    a step that left the bracket [‖S‖_F/√3, upper]) are recomputed by ``eigvalsh`` of
+    Horn's matrix, which is backward stable: its error is u·‖N‖ however close the roots.
+    """
+    c2, c1, c0 = _qcp_coefficients(s)
     lam = upper.copy()
+    lower = np.sqrt(np.einsum("mab,mab->m", s, s) / 3.0)
     idx = np.arange(lam.size)
+    bad = np.zeros(lam.size, dtype=bool)
     for _ in range(60):
         lc = lam[idx]
         l2 = lc * lc
         f = (l2 + c2[idx]) * l2 + c1[idx] * lc + c0[idx]
         g = 4.0 * l2 * lc + 2.0 * c2[idx] * lc + c1[idx]
         step = np.where(g > 0, f / np.where(g > 0, g, 1.0), 0.0)
-        lam[idx] = lc - step
-        busy = np.abs(step) > 1e-12 * np.maximum(np.abs(lc), 1e-300)
+        new = lc - step
+        lost = (g <= 0) | (new < lower[idx]) | (new > upper[idx])
+        bad[idx[lost]] = True
+        lam[idx] = np.where(lost, lc, new)
+        busy = ~lost & (np.abs(step) > 1e-12 * np.maximum(np.abs(lc), 1e-300))
         idx = idx[busy]
         if idx.size == 0:
             break
+    l2 = lam * lam
+    g = 4.0 * l2 * lam + 2.0 * c2 * lam + c1
+    bad |= g < 0.05 * l2 * lam
+    if np.any(bad):
+        lam[bad] = np.linalg.eigvalsh(_horn_matrix(s[bad]))[:, -1]
     return lam
 
 
