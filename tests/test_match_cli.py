@@ -162,3 +162,82 @@ def test_library_match_api_and_its_errors(setup):
             lib.match(flat, machine="xyz", eps=EPS)
         with pytest.raises(InputError, match="rotation"):
             lib.match(path, machine="xyz", eps=EPS, rotation="spin")
+
+
+def _probe(setup, name: str, points: np.ndarray):
+    csv = setup["tmp"] / f"{name}.csv"
+    write_path_csv(csv, np.arange(len(points)) * 0.005, points)
+    return csv
+
+
+def _base_points(setup) -> np.ndarray:
+    from primlib.io import read_path_csv
+
+    return read_path_csv(setup["csv"])[1]
+
+
+@pytest.mark.parametrize(
+    ("case", "msg"),
+    [
+        ("one_value_1e308", "expected coordinates within ±1e+09, got 1e+308 at sample 10"),
+        ("all_values_x1e300", "expected coordinates within ±1e+09, got"),
+        ("all_values_x1e50", "expected coordinates within ±1e+09, got"),
+        ("constant", "the path does not move"),
+    ],
+)
+def test_match_refuses_a_path_with_huge_values_or_no_extent_at_once(setup, case, msg):
+    # issue 12: 1e308 gave 'cannot convert float NaN to integer', x1e300 an OverflowError,
+    # a constant path took 14 s and 500 MB; now one sentence before any search
+    pts = _base_points(setup)
+    if case == "one_value_1e308":
+        pts = pts.copy()
+        pts[10, 0] = 1e308
+    elif case == "all_values_x1e300":
+        pts = pts * 1e300
+    elif case == "all_values_x1e50":
+        pts = pts * 1e50
+    else:
+        pts = np.full_like(pts, 3.0)
+    csv = _probe(setup, case, pts)
+    out = setup["tmp"] / f"{case}-u0.csv"
+    res = _run(setup, csv, "-m", "xyz", "--out", out)
+    assert res.exit_code == 2, res.output
+    assert msg in res.output and str(csv) in res.output
+    assert len(res.output.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_match_out_pointed_at_its_own_input_is_refused_before_working(setup):
+    # issue 12: `match --out` pointed at its own input overwrote the path
+    csv = _probe(setup, "own-input", _base_points(setup))
+    before = csv.read_bytes()
+    res = _run(setup, csv, "-m", "xyz", "--out", csv)
+    assert res.exit_code == 2
+    assert res.output.strip() == f"Error: --out {csv}: is also an input of this command; " \
+        "choose another file"  # fmt: skip
+    assert csv.read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    ("opt", "name", "msg"),
+    [
+        ("--plot", "fig.foo", "expected a file ending in .png"),
+        ("--out", "u0.txt", "expected a file ending in .csv, got .txt"),
+        ("--plot", "no/fig.png", "does not exist"),
+    ],
+)
+def test_match_output_formats_and_folders_are_checked_before_working(setup, opt, name, msg):
+    target = setup["tmp"] / name
+    res = _run(setup, setup["csv"], "-m", "xyz", opt, target)
+    assert res.exit_code == 2 and msg in res.output
+    assert not target.exists()
+
+
+def test_match_takes_m_for_machine_like_learn(setup):
+    short = _run(setup, setup["csv"], "-m", "xyz", "--eps", EPS, "--json")
+    long = _run(setup, setup["csv"], "--machine", "xyz", "--eps", EPS, "--json")
+    assert short.exit_code == 0 == long.exit_code
+    a, b = json.loads(short.output), json.loads(long.output)
+    assert [s["end"] for s in a["segments"]] == [s["end"] for s in b["segments"]]
+    learn_help = CliRunner().invoke(main, ["learn", "--help"]).output
+    assert "-m, --machine" in learn_help

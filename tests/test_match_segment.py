@@ -1,5 +1,7 @@
 """Search and segmentation on synthetic libraries (arrays only, no store)."""
 
+import time
+
 import numpy as np
 import pytest
 from _reference_search import ScanSearch, reference_segment_path
@@ -203,3 +205,14 @@ def test_bad_input():
     empty = Bank.from_samples([], DT)
     with pytest.raises(NoMatchError, match="no primitive stored"):
         segment_path(empty, pts, DT, 0.1)
+
+
+def test_a_constant_path_is_refused_at_once():
+    # issue 12: a zero-extent path got eps 3.5e-18 and took 14 s and 500 MB
+    bank = _library(2, 100)
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match=r"path: the path does not move \(largest distance"):
+        segment_path(bank, np.full((5000, 3), 2.0), DT, 3.5e-18)
+    assert time.perf_counter() - t0 < 1.0  # no search ran (generous: a check of 5,000 rows)
+    with pytest.raises(InputError, match=r"path: expected coordinates within ±1e\+09"):
+        segment_path(bank, bank.points_of(0) * 1e300, DT, 0.1)

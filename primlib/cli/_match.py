@@ -53,7 +53,9 @@ def _table(mt, duration: float) -> str:
 
 @main.command("match")
 @click.argument("path_csv", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--machine", "machine_name", required=True, help="Machine whose primitives to use.")
+@click.option(
+    "--machine", "-m", "machine_name", required=True, help="Machine whose primitives to use."
+)
 @click.option(
     "--eps",
     type=float,
@@ -111,21 +113,26 @@ def match(
     rotation angle, time scale k (stored duration / segment duration) and Kabsch RMSD.
 
     \b
-    primlib match new_path.csv --machine xyz --eps 0.05
+    primlib match new_path.csv -m xyz --eps 0.05
     primlib match new_path.csv --machine xyz --json --plot match.png --out u0.csv
     """
-    from primlib.cli._library import _open_library
-    from primlib.match import default_eps
-    from primlib.nurbs import Trajectory
+    from primlib.cli._library import _db, _open_library
+    from primlib.cli._output import FIGURE_FORMATS, TABLE_FORMATS, check_output
+    from primlib.io import read_path_csv
+    from primlib.match import check_path_samples, default_eps
 
     if eps is not None and not (np.isfinite(eps) and eps > 0):
         raise InputError(f"--eps: expected a tolerance > 0, got {eps:g}")
-    for opt, f in (("--plot", plot_file), ("--out", out_file)):
-        if f is not None and not f.parent.exists():
-            raise InputError(f"{opt} {f}: directory {f.parent} does not exist")
+    inputs = (path_csv, _db(ctx))
+    check_output("--plot", plot_file, FIGURE_FORMATS, inputs)
+    check_output("--out", out_file, TABLE_FORMATS, inputs)
     if plot_file is not None and ctx.find_root().obj.get("remote"):
         raise click.UsageError("--plot: draws from the library file; not with --remote")
-    traj = Trajectory.from_csv(path_csv)
+    t, samples = read_path_csv(path_csv)
+    check_path_samples(samples, str(path_csv))
+    from primlib.nurbs import Trajectory
+
+    traj = Trajectory.from_samples(samples, float(t[-1]) / (t.shape[0] - 1))
     with _open_library(ctx, read_only=True, remote=True) as lib:
         m = lib.machine(machine_name)
         if traj.dim != m.dim:

@@ -16,6 +16,7 @@ Modules: ``_kabsch`` (superposition), ``_bounds`` (lower bounds on prefix sums),
 """
 
 from primlib.match._bank import BankIndex
+from primlib.match._checks import check_path_samples
 from primlib.match._kabsch import KabschResult, kabsch, rmsd_from_moments
 from primlib.match._match_path import DEFAULT_EPS, default_eps, match_path, matched_pieces
 from primlib.match._options import SearchOptions
@@ -33,6 +34,7 @@ __all__ = [
     "DEFAULT_EPS",
     "default_eps",
     "matched_pieces",
+    "check_path_samples",
     "SearchOptions",
     "BankIndex",
 ]

@@ -11,6 +11,7 @@ import numpy as np
 from primlib._errors import InputError
 from primlib.defaults import EPS_FRACTION
 from primlib.match._bank import BankIndex, as_index
+from primlib.match._checks import check_path_samples
 from primlib.match._interp import cubic_at
 from primlib.match._options import SearchOptions
 from primlib.match._segment import segment_path
@@ -62,7 +63,8 @@ def match_path(
     Raises
     ------
     InputError
-        eps <= 0, a path of another dimension than the machine, a bad option.
+        eps <= 0, a path of another dimension than the machine, a bad option, a path
+        that does not move or has values out of range (:func:`check_path_samples`).
     NoMatchError
         No usable primitive in the bank.
 
@@ -83,6 +85,7 @@ def match_path(
     index.require()
     n = max(int(round(path.duration / index.dt)) + 1, 2)
     points = path.at(np.linspace(0.0, 1.0, n))
+    check_path_samples(points, "path")
     segments, info = segment_path(
         index,
         points,

@@ -33,6 +33,7 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.match._bank import BankIndex, as_index
+from primlib.match._checks import check_path_samples
 from primlib.match._index_search import IndexSearch
 from primlib.match._kabsch import ROTATION_MODES
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
@@ -93,6 +94,7 @@ def _check_points(points: np.ndarray, bank: BankIndex) -> None:
             f"path: expected {bank.dim}-D points like the machine's primitives, "
             f"got {points.shape[1]}-D"
         )
+    check_path_samples(points, "path")
 
 
 class _Segmenter:

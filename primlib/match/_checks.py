@@ -1,0 +1,52 @@
+"""Checks of a path's samples shared by every entry point of the matcher."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from primlib._errors import InputError
+from primlib.defaults import MAX_ABS_VALUE, MIN_EXTENT_REL
+
+__all__ = ["check_path_samples"]
+
+
+def check_path_samples(points: np.ndarray, where: str = "path") -> None:
+    """Refuse samples that cannot be matched, before any work: non-finite or out-of-range
+    values, or a path that does not move.
+
+    Parameters
+    ----------
+    points : array, shape (n, d)
+        The path's samples.
+    where : str
+        What to name in the message (a file name).
+
+    Raises
+    ------
+    InputError
+        A value that is not finite or beyond :data:`primlib.defaults.MAX_ABS_VALUE`
+        (its second moments would overflow), or an extent (largest distance from the
+        centroid) below :data:`primlib.defaults.MIN_EXTENT_REL` of the largest coordinate
+        magnitude (or of 1 unit): a constant path, whose tolerance would be round-off.
+    """
+    pts = np.asarray(points, dtype=float)
+    finite = np.isfinite(pts)
+    if not finite.all():
+        i, j = np.argwhere(~finite)[0]
+        raise InputError(f"{where}: expected finite coordinates, got {pts[i, j]} at sample {i}")
+    with np.errstate(over="ignore"):
+        mag = np.abs(pts)
+    if pts.size and mag.max() > MAX_ABS_VALUE:
+        i, j = np.unravel_index(np.argmax(mag), mag.shape)
+        raise InputError(
+            f"{where}: expected coordinates within ±{MAX_ABS_VALUE:.0e}, "
+            f"got {pts[i, j]:.3g} at sample {i}"
+        )
+    scale = max(float(mag.max()) if pts.size else 0.0, 1.0)
+    extent = float(np.sqrt(((pts - pts.mean(axis=0)) ** 2).sum(axis=1)).max()) if pts.size else 0.0
+    if extent <= MIN_EXTENT_REL * scale:
+        raise InputError(
+            f"{where}: the path does not move (largest distance from its centroid "
+            f"{extent:.3g}, at most {MIN_EXTENT_REL:g} of its coordinates' size {scale:.3g}), "
+            "nothing to match"
+        )
