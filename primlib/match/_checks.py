@@ -11,8 +11,9 @@ __all__ = ["check_path_samples"]
 
 
 def check_path_samples(points: np.ndarray, where: str = "path") -> None:
-    """Refuse samples that cannot be matched, before any work: non-finite or out-of-range
-    values, or a path that does not move.
+    """Refuse path samples that cannot be matched (non-finite, out of range, or not moving).
+
+    Run before any work, so a bad path costs nothing.
 
     Parameters
     ----------

@@ -135,8 +135,9 @@ def matched_pieces(
 
 
 def default_eps(path: Trajectory | Any) -> float:
-    """The default Kabsch RMSD tolerance for ``path``: its extent times
-    :data:`primlib.defaults.EPS_FRACTION`.
+    """The default Kabsch RMSD tolerance for ``path``: ``EPS_FRACTION`` times its extent.
+
+    :data:`primlib.defaults.EPS_FRACTION` (the same number as ``DEFAULT_EPS``).
 
     Parameters
     ----------

@@ -14,7 +14,7 @@ __all__ = ["SearchOptions", "Candidate", "PathPiece", "SearchStats"]
 
 @dataclass(frozen=True)
 class SearchOptions:
-    """Knobs of the search (see the notes of :mod:`primlib.match._index_search`).
+    """Knobs of the search, documented in the notes of ``primlib.match._index_search``.
 
     Attributes
     ----------
