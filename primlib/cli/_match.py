@@ -155,7 +155,7 @@ def match(
             pieces = matched_pieces(mt.segments, lib.bank(machine_name))
     n = max(int(round(traj.duration / m.dt)) + 1, 2)
     if plot_file is not None:
-        from primlib.plot._match import plot_match
+        from primlib.plot import plot_match
 
         plot_match(plot_file, traj.at(np.linspace(0.0, 1.0, n)), mt, pieces)
     if ws is not None:

@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import math
+import time
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from primlib._errors import NoMatchError
 from primlib.defaults import MAX_ABS_VALUE
+from primlib.match._arc_index import ArcIndex
 
 if TYPE_CHECKING:
-    from primlib.match._arc_index import ArcIndex
     from primlib.store import Bank
 
 __all__ = ["BankIndex", "as_index"]
@@ -126,10 +127,6 @@ class BankIndex:
     def arc_index(self) -> ArcIndex:
         """The arc-length index of the usable primitives (built on first call, then kept)."""
         if self._arc is None:
-            import time
-
-            from primlib.match._arc_index import ArcIndex
-
             t0 = time.perf_counter()
             self._arc = ArcIndex.build(self)
             self.index_seconds = time.perf_counter() - t0
@@ -138,8 +135,6 @@ class BankIndex:
     def fine_arc_index(self, j: int) -> ArcIndex:
         """An index 2ʲ times finer than :meth:`arc_index` (for pieces short in arc length),
         built once; j is capped so it holds at most ~4 million points."""
-        from primlib.match._arc_index import ArcIndex
-
         base = self.arc_index()
         n0 = base.levels[0].pts.shape[0]
         j = min(j, int(math.log2(max(_FINE_CAP / max(n0, 1), 1.0))))
