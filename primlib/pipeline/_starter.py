@@ -4,8 +4,9 @@
 the matcher (:func:`primlib.match.match_path`), carries the matched primitives' stored
 inputs over (:func:`primlib.splice.splice`) into a first-iteration input, runs ILC from it
 (:func:`~primlib.pipeline.learn_on_model`), and stores the converged input back. Its caches
-are attributes of the object, never module globals: the refined models (one least-squares
-fit per machine model and primitive set). Data flows one way: the store never calls back.
+are attributes of the object, never module globals: the search index of each machine's bank
+(a :class:`~primlib.match.BankIndex`) and the refined models (one least-squares fit per
+machine model and primitive set). Data flows one way: the store never calls back.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import NoMatchError
-from primlib.match import Match, default_eps, match_path
+from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
@@ -63,12 +64,25 @@ class WarmStarter:
         The refined-model cache: (machine definition, primitive ids) -> RefinedModel. Ids
         are never reused within a store and stored primitives never change, so the key
         names the data.
+    indexes : dict
+        Machine name -> the :class:`~primlib.match.BankIndex` of its current bank. The
+        store hands out the same Bank object while a machine's primitives are unchanged,
+        so an index is rebuilt exactly when they change.
     """
 
     def __init__(self, store: Store, *, refine_cache: int = 16) -> None:
         self.store = store
         self.refine_cache = int(refine_cache)
         self.refined: OrderedDict[tuple, RefinedModel] = OrderedDict()
+        self.indexes: dict[str, BankIndex] = {}
+
+    def index(self, machine: str) -> BankIndex:
+        """The search index of the machine's primitives, kept while they are unchanged."""
+        bank = self.store.bank(machine)
+        hit = self.indexes.get(machine)
+        if hit is None or hit.bank is not bank:
+            hit = self.indexes[machine] = BankIndex(bank)
+        return hit
 
     # ------------------------------------------------------------------ match
     def match(
@@ -85,7 +99,7 @@ class WarmStarter:
             Kabsch RMSD tolerance (user units, > 0); default
             :func:`primlib.match.default_eps` of the path.
         **kw
-            ``rotation``, ``time_scale``, ``min_step``, ``search``, ``options`` of
+            ``rotation``, ``time_scale``, ``min_step``, ``options`` of
             :func:`primlib.match.match_path`.
 
         Returns
@@ -94,7 +108,7 @@ class WarmStarter:
         """
         traj = as_trajectory(path)
         e = default_eps(traj) if eps is None else eps
-        return match_path(self.store, traj, machine=machine, eps=e, **kw)
+        return match_path(self.index(machine), traj, eps=e, **kw)
 
     # ------------------------------------------------------------------ refine
     def refined_model(self, machine: Machine, bank: Bank, ids: Sequence[int]) -> RefinedModel:
