@@ -15,11 +15,15 @@ before any write), ``_insert`` (batch writes), ``_machines`` (the machines table
 from primlib.store._connection import WriteCancelled
 from primlib.store._schema import MIGRATIONS, SCHEMA_VERSION, migrate
 from primlib.store._store import Store
+from primlib.store._trials import SeriesRecord, TrialRecord, TrialStore
 from primlib.store._types import AddResult, Bank, Primitive, PrimitiveInfo
 from primlib.store._validate import check_name, content_hash
 
 __all__ = [
     "Store",
+    "TrialStore",
+    "SeriesRecord",
+    "TrialRecord",
     "Bank",
     "Primitive",
     "PrimitiveInfo",

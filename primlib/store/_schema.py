@@ -7,7 +7,7 @@ its own transaction together with the bump of ``meta.schema_version`` and a row 
 and leaves the file at the previous version. Steps are SQL text or a callable taking the
 connection. Never edit a released step: append a new one.
 
-Layout (version 3):
+Layout (version 4):
 
 ``meta(key, value)``
     ``application = primlib`` marks a primlib library; ``schema_version``.
@@ -26,6 +26,17 @@ ctrlpts, weights, points, signal)``
     ``content_hash`` (version 3) identifies machine, path and signal
     (:func:`primlib.store._validate.content_hash`): the same primitive is not stored twice
     unless asked to.
+``series(id, machine, name, created, state, start, options, notes, duration, dt, dim,
+n_samples, degree, knots, ctrlpts, weights, points, origin, steps, primitive, finished)``
+    A trial series on a real stage (:mod:`primlib.store._trials`): the path (NURBS and
+    sampled, absolute coordinates), ``origin`` the absolute start position, ``steps`` the
+    number of measured trials (the counter a step checks in its transaction), ``state``
+    ``running`` or ``finished`` (then ``primitive`` is the id it was stored as).
+``trials(series, trial, input, measured, digest, rms, rms_axes, contour_rms, noise_floor,
+q_cutoff, created, recorded)``
+    One row per trial: its input (n x d, flattened), and once run the measured output
+    (absolute positions), its SHA-256 ``digest``, the RMS tracking and contour error, and the
+    noise floor and Q cut-off the learning law estimated after it.
 
 To add a step, append ``(next version, description, SQL text or callable)`` to
 :data:`MIGRATIONS`; nothing else changes.
@@ -126,6 +137,51 @@ MIGRATIONS: list[Migration] = [
         """,
     ),
     (3, "primitives: content_hash, so the same primitive is not stored twice", _add_content_hash),
+    (
+        4,
+        "trial series and their trials: each trial's input and measured output",
+        """
+        CREATE SEQUENCE series_ids START 1;
+        CREATE TABLE series (
+            id BIGINT PRIMARY KEY,
+            machine VARCHAR NOT NULL,
+            name VARCHAR,
+            created TIMESTAMP NOT NULL,
+            state VARCHAR NOT NULL,
+            start VARCHAR NOT NULL,
+            options VARCHAR NOT NULL,
+            notes VARCHAR NOT NULL,
+            duration DOUBLE NOT NULL,
+            dt DOUBLE NOT NULL,
+            dim INTEGER NOT NULL,
+            n_samples INTEGER NOT NULL,
+            degree INTEGER NOT NULL,
+            knots DOUBLE[] NOT NULL,
+            ctrlpts DOUBLE[] NOT NULL,
+            weights DOUBLE[] NOT NULL,
+            points DOUBLE[] NOT NULL,
+            origin DOUBLE[] NOT NULL,
+            steps INTEGER NOT NULL,
+            primitive BIGINT,
+            finished TIMESTAMP
+        );
+        CREATE TABLE trials (
+            series BIGINT NOT NULL,
+            trial INTEGER NOT NULL,
+            input DOUBLE[] NOT NULL,
+            measured DOUBLE[],
+            digest VARCHAR,
+            rms DOUBLE,
+            rms_axes DOUBLE[],
+            contour_rms DOUBLE,
+            noise_floor DOUBLE,
+            q_cutoff DOUBLE,
+            created TIMESTAMP NOT NULL,
+            recorded TIMESTAMP,
+            PRIMARY KEY (series, trial)
+        );
+        """,
+    ),
 ]
 
 
