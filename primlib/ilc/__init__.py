@@ -23,6 +23,7 @@ from primlib.ilc._learn import NORM_OPTIMAL_MAX_N, ILCResult, check_learning, le
 from primlib.ilc._lifted import LiftedMasterSlave, lifted_master_slave
 from primlib.ilc._master_slave import MasterSlaveCheck, MasterSlaveResult, learn_master_slave
 from primlib.ilc._ms_law import MasterSlaveGains, contour_error_estimate, master_slave_law
+from primlib.ilc._noise import NoiseEstimate, TrialLearner, TrialUpdate, estimate_noise
 from primlib.ilc._qfilter import QFilter
 
 __all__ = [
@@ -50,4 +51,8 @@ __all__ = [
     "contour_error_estimate",
     "LiftedMasterSlave",
     "lifted_master_slave",
+    "TrialLearner",
+    "TrialUpdate",
+    "NoiseEstimate",
+    "estimate_noise",
 ]
