@@ -88,6 +88,7 @@ _COMMAND_MODULES: list[str] = [
     "_match",
     "_machine_identify",
     "_serve",
+    "_trials",
 ]
 
 

@@ -301,6 +301,21 @@ class Machine:
                     y[:, i] += apply_sections(sos_r, r[:, i])
         return y
 
+    def run(self, u: Any) -> np.ndarray:
+        """One trial: the output for input ``u`` (``simulate(u)``), so that a Machine is a
+        :class:`primlib.trials.Plant` (PID loops, if any, hold the start point).
+
+        Parameters
+        ----------
+        u : array, shape (n, d)
+
+        Returns
+        -------
+        y : array, shape (n, d)
+            Output relative to the start point.
+        """
+        return self.simulate(u)
+
     def reference_response(self, reference: Any) -> np.ndarray:
         """Output for u = 0 and the given PID reference, shape (n, d); zero on open-loop axes."""
         r = self.check_signal(reference, "reference")
