@@ -50,7 +50,8 @@ def _run(db: Path, *args) -> object:
 
 
 @pytest.fixture
-def setup(tmp_path):
+def setup(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # default input files land here
     db = tmp_path / "lib.duckdb"
     stage = _stage()
     with Library(db) as lib:
