@@ -56,6 +56,9 @@ def trials() -> None:
     help="First input from the library's warm start (the model inverse where nothing "
     "matches), or zero.",
 )
+@click.option(
+    "--inverse", is_flag=True, help="First input from the model inverse (for comparison)."
+)
 @click.option("--law", type=click.Choice(_LAW_CHOICES), default="norm-optimal", show_default=True)
 @click.option(
     "--plain",
@@ -89,6 +92,7 @@ def start_cmd(
     path: Path,
     machine_name: str,
     warm: bool,
+    inverse: bool,
     law: str,
     plain: bool,
     average: int | None,
@@ -123,7 +127,10 @@ def start_cmd(
         "q_cutoff": q_cutoff,
     }
     with Library(_db(ctx), create=False) as lib:
-        res = start(lib, traj, machine_name, warm=warm, eps=eps, name=name or path.stem, **options)
+        first = "inverse" if inverse else "warm" if warm else "cold"
+        res = start(
+            lib, traj, machine_name, first=first, eps=eps, name=name or path.stem, **options
+        )
     out = out or _default_out(res.series, 0)
     _write_input(out, res.t, res.u)
     if as_json:

@@ -173,13 +173,18 @@ def learner(model, reference: np.ndarray, options: dict[str, Any]):
     return TrialLearner(model, reference, **_options(options))
 
 
-def _first_input(lib, traj, machine: str, ref: np.ndarray, warm: bool, eps: float | None):
+_FIRST = ("warm", "inverse", "cold")
+
+
+def _first_input(lib, traj, machine: str, ref: np.ndarray, first: str, eps: float | None):
     """(u0, start kind, notes): the warm start, else the model inverse (and say so)."""
     from primlib.plant import invert
 
     model = lib.machine(machine)
-    if not warm:
+    if first == "cold":
         return np.zeros_like(ref), "cold", ["cold start: the first input is zero"]
+    if first == "inverse":
+        return invert(model, ref), "inverse", ["the first input is the model inverse (asked for)"]
     from primlib.match import default_eps
 
     try:
@@ -205,7 +210,7 @@ def start(
     path,
     machine: str,
     *,
-    warm: bool = True,
+    first: str = "warm",
     eps: float | None = None,
     name: str | None = None,
     **options: Any,
@@ -220,9 +225,9 @@ def start(
         The path, absolute coordinates (a CSV file name is read).
     machine : str
         The machine (its model designs the law; its primitives give the warm start).
-    warm : bool
-        The library's warm start (default); where nothing matches, the model inverse.
-        False: start from zero.
+    first : {"warm", "inverse", "cold"}
+        The first input: the library's warm start (default; where nothing matches, the
+        model inverse), the model inverse, or zero.
     eps : float, optional
         Match tolerance (default: 3e-4 of the path's extent).
     name : str, optional
@@ -241,11 +246,13 @@ def start(
     model = lib.machine(machine)
     if traj.dim != model.dim:
         raise InputError(f"path: expected {model.dim} axes for machine {machine!r}, got {traj.dim}")
+    if first not in _FIRST:
+        raise InputError(f"first: expected one of {', '.join(_FIRST)}, got {first!r}")
     opts = _options(options)
     points = traj.sample(model.dt)
     ref = points - points[0]
     learner(model, ref, opts)  # checks the options before anything is written
-    u0, kind, notes = _first_input(lib, traj, machine, ref, warm, eps)
+    u0, kind, notes = _first_input(lib, traj, machine, ref, first, eps)
     sid = _store(lib).create(
         traj, points, u0, machine=machine, start=kind, options=opts, notes=notes, name=name
     )
