@@ -154,9 +154,9 @@ class TrialStore:
 
     Examples
     --------
-    >>> store = TrialStore(lib)                                       # doctest: +SKIP
-    >>> sid = store.create(traj, points, u0, machine="stage", start="warm", options={})
-    >>> store.trials(sid)[0].pending                                  # doctest: +SKIP
+    >>> store = TrialStore(lib)  # doctest: +SKIP
+    >>> sid = store.create(traj, points, u0, machine="stage", start="warm", options={})  # doctest: +SKIP
+    >>> store.trials(sid)[0].pending  # doctest: +SKIP
     True
     """
 
