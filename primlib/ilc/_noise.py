@@ -224,9 +224,10 @@ class TrialLearner:
 
     Examples
     --------
-    >>> learner = TrialLearner(model, reference)                       # doctest: +SKIP
-    >>> step = learner.update(inputs, outputs)    # (k, n, d) each     # doctest: +SKIP
-    >>> step.u, step.converged                                         # doctest: +SKIP
+    >>> learner = TrialLearner(m, reference)
+    >>> step = learner.update(u[None], m.simulate(u)[None])  # one trial: (k, n, d) each
+    >>> step.u.shape, step.converged
+    ((201, 3), False)
     """
 
     model: object

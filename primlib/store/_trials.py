@@ -154,10 +154,11 @@ class TrialStore:
 
     Examples
     --------
-    >>> store = TrialStore(lib)  # doctest: +SKIP
-    >>> sid = store.create(traj, points, u0, machine="stage", start="warm", options={})  # doctest: +SKIP
-    >>> store.trials(sid)[0].pending  # doctest: +SKIP
-    True
+    >>> store = TrialStore(lib)
+    >>> pts = path.sample(0.005)
+    >>> sid = store.create(path, pts, np.zeros_like(pts), machine="xyz", start="cold", options={})
+    >>> store.trials(sid)[0].pending, store.series(sid).steps
+    (True, 0)
     """
 
     def __init__(self, library: Any) -> None:

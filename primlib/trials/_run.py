@@ -166,11 +166,12 @@ class TrialSeries:
 
     Examples
     --------
-    >>> s = TrialSeries.start(lib, "path.csv", machine="stage")       # doctest: +SKIP
-    >>> s.run(my_stage, max_trials=10)                                # doctest: +SKIP
-    >>> s.status().verdict                                            # doctest: +SKIP
-    'converged'
-    >>> pid = s.finish()                                              # doctest: +SKIP
+    >>> s = TrialSeries.start(lib, path, machine="xyz", first="inverse")
+    >>> s.status().verdict
+    'started'
+    >>> result = s.run(m, max_trials=1)  # a Machine is a Plant; so is your stage
+    >>> [t.pending for t in s.status().trials]
+    [False, True]
     """
 
     def __init__(self, lib, series: int) -> None:
