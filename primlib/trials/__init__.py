@@ -13,7 +13,6 @@ a series survives a crash between any two steps and resumes in another process.
 from primlib.trials._plant import CommandPlant, Plant, TrialCommandError, read_measured
 from primlib.trials._run import RunResult, TrialSeries, run_command, run_trials
 from primlib.trials._series import (
-    LEARN_OPTIONS,
     SeriesStatus,
     StartResult,
     StepResult,
@@ -43,5 +42,4 @@ __all__ = [
     "StartResult",
     "StepResult",
     "SeriesStatus",
-    "LEARN_OPTIONS",
 ]
