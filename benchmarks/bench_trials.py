@@ -39,8 +39,8 @@ import paths as example_paths  # noqa: E402
 from benchmarks._timing import median_time  # noqa: E402
 from primlib.ilc import TrialLearner, learn  # noqa: E402
 from primlib.nurbs import Trajectory  # noqa: E402
+from primlib.pipeline import Library  # noqa: E402
 from primlib.plant import Machine, invert  # noqa: E402
-from primlib.store import Library  # noqa: E402
 from primlib.trials import TrialSeries  # noqa: E402
 
 SIGMA = 0.01

@@ -13,8 +13,9 @@ from click.testing import CliRunner
 
 from primlib.cli import main
 from primlib.io import read_signal_csv, write_path_csv
+from primlib.pipeline import Library
 from primlib.plant import Machine
-from primlib.store import Library, TrialStore
+from primlib.store import TrialStore
 
 ROOT = Path(__file__).resolve().parents[1]
 STAGE = ROOT / "examples" / "stage"

@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 from primlib.io import write_path_csv
+from primlib.pipeline import Library
 from primlib.plant import Machine
-from primlib.store import Library, TrialStore
+from primlib.store import TrialStore
 from primlib.trials import start
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,8 +9,9 @@ import pytest
 
 from primlib import InputError
 from primlib.nurbs import Trajectory
+from primlib.pipeline import Library
 from primlib.plant import Machine, invert
-from primlib.store import Library, TrialStore
+from primlib.store import TrialStore
 from primlib.trials import Plant, TrialSeries, pending, start, status, step
 
 ROOT = Path(__file__).resolve().parents[1]

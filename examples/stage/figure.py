@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from primlib.store import Library, TrialStore  # noqa: E402
+from primlib.store import Store, TrialStore  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -29,7 +29,7 @@ def main(argv: list[str] | None = None) -> None:
         "--series", type=int, nargs=3, default=[1, 2, 3], metavar=("GLYPH", "WARM", "INV")
     )
     args = p.parse_args(argv)
-    with Library(args.db, read_only=True) as lib:
+    with Store(args.db, read_only=True) as lib:
         store = TrialStore(lib)
         glyph, warm, inv = (store.series(s) for s in args.series)
         trials = [t for t in store.trials(glyph.id) if not t.pending]

@@ -110,7 +110,7 @@ def start_cmd(
     primlib trials start glyph.csv --machine stage --out u0.csv
     """
     from primlib.nurbs import Trajectory
-    from primlib.store import Library
+    from primlib.pipeline import Library
     from primlib.trials import start
 
     check_output("--out", out, TABLE_FORMATS, inputs=[path])
@@ -168,7 +168,8 @@ def start_cmd(
 @click.pass_context
 def step_cmd(ctx: click.Context, series: int, measured: Path, out: Path | None, as_json) -> None:
     """Record the measured output of series SERIES' pending trial and write the next input."""
-    from primlib.store import Library, TrialStore
+    from primlib.pipeline import Library
+    from primlib.store import TrialStore
     from primlib.trials import read_measured, step
 
     check_output("--out", out, TABLE_FORMATS, inputs=[measured])
@@ -205,7 +206,7 @@ def step_cmd(ctx: click.Context, series: int, measured: Path, out: Path | None, 
 @click.pass_context
 def status_cmd(ctx: click.Context, series: int, as_json: bool) -> None:
     """Print the RMS tracking and contour error per trial and the stop rule's verdict."""
-    from primlib.store import Library
+    from primlib.pipeline import Library
     from primlib.trials import status
 
     with Library(_db(ctx), read_only=True) as lib:
@@ -239,7 +240,7 @@ def status_cmd(ctx: click.Context, series: int, as_json: bool) -> None:
 @click.pass_context
 def finish_cmd(ctx: click.Context, series: int, name: str | None, force: bool) -> None:
     """Store series SERIES' converged input as a primitive of its machine."""
-    from primlib.store import Library
+    from primlib.pipeline import Library
     from primlib.trials import finish
 
     with Library(_db(ctx), create=False) as lib:
@@ -254,7 +255,7 @@ def finish_cmd(ctx: click.Context, series: int, name: str | None, force: bool) -
 @click.pass_context
 def input_cmd(ctx: click.Context, series: int, out: Path | None) -> None:
     """Write series SERIES' pending input again (after a crash, or a lost file)."""
-    from primlib.store import Library
+    from primlib.pipeline import Library
     from primlib.trials import pending
 
     check_output("--out", out, TABLE_FORMATS)
@@ -270,7 +271,8 @@ def input_cmd(ctx: click.Context, series: int, out: Path | None) -> None:
 @click.pass_context
 def list_cmd(ctx: click.Context, machine_name: str | None) -> None:
     """List the trial series: id, machine, name, state, trials, last rms."""
-    from primlib.store import Library, TrialStore
+    from primlib.pipeline import Library
+    from primlib.store import TrialStore
 
     with Library(_db(ctx), read_only=True) as lib:
         store = TrialStore(lib)

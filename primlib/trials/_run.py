@@ -131,7 +131,8 @@ def run_command(
     TrialCommandError
         The program failed; every trial recorded before stays recorded.
     """
-    from primlib.store import Library, TrialStore
+    from primlib.pipeline import Library
+    from primlib.store import TrialStore
 
     max_trials = _check_max(max_trials)
     with Library(db, create=False) as lib:
