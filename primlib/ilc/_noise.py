@@ -51,11 +51,13 @@ import numpy as np
 from scipy import fft
 
 from primlib._errors import InputError
-from primlib.ilc._learn import LAWS, _prepare, _update
+from primlib.ilc._laws import law_from_name
+from primlib.ilc._learn import _prepare, _update
 from primlib.ilc._qfilter import QFilter
 
 __all__ = ["TrialLearner", "TrialUpdate", "NoiseEstimate", "estimate_noise"]
 
+LAWS = ("p", "pd", "pid", "norm-optimal")  # the laws a trial series learns with
 _PER_DECADE = 12  # cut-off grid
 _GROWTH = 0.1  # relative growth that counts as diverging when no floor is known yet
 _MOVE = 0.5  # largest model move of an averaged trial's error, relative to the last error
@@ -261,7 +263,8 @@ class TrialLearner:
         key = None if q_cutoff is None else round(q_cutoff, 9)
         if key not in self._laws:
             q = None if q_cutoff is None else QFilter(q_cutoff, self.model.dt)
-            axes, _, _ = _prepare(self.model, self.reference.shape[0], self.law, None, q)
+            spec = law_from_name(self.law)
+            axes, _, _ = _prepare(self.model, self.reference.shape[0], spec, q)
             self._laws[key] = (axes, q)
         return self._laws[key]
 
@@ -317,10 +320,10 @@ class TrialLearner:
     def _step(self, error: np.ndarray, u_last: np.ndarray, q_cutoff: float | None) -> np.ndarray:
         if self.noise_aware:
             axes, _ = self._law(None)
-            new = _update(u_last, error, axes, self.law, None, [])
+            new = _update(u_last, error, axes, None, [])
             return new if q_cutoff is None else QFilter(q_cutoff, self.model.dt, _Q_ORDER)(new)
         axes, q = self._law(q_cutoff)
-        return _update(u_last, error, axes, self.law, q, [])
+        return _update(u_last, error, axes, q, [])
 
     def learned_fraction(self, est: NoiseEstimate, q_cutoff: float | None) -> float:
         """phi: the share of one trial's noise power that an update puts into the motion.
