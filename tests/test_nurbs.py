@@ -422,3 +422,41 @@ def test_transformed_and_with_duration_are_exact(make):
         tr.transformed(None, [1.0, np.nan, 0.0])
     with pytest.raises(InputError, match=r"duration: expected a positive finite number"):
         tr.with_duration(-1)
+
+
+def test_from_nurbs_accepts_geomdl_split_curve_with_end_knots_ulps_below_1():
+    # issue 12: geomdl's split_curve wrote end knots 0.9999999999999998 x3, 1.0
+    from geomdl import operations
+
+    t = np.arange(400) * 0.01
+    tr = Trajectory.from_samples(np.c_[np.cos(t), np.sin(2 * t)], 0.01)
+    first, second = operations.split_curve(tr.nurbs, 0.0024709595620390893)
+    assert first.knotvector[-4:-1] == [1.0 - 2.0**-52] * 3  # the case as geomdl writes it
+    for piece, (a, b) in (
+        (first, (0.0, 0.0024709595620390893)),
+        (second, (0.0024709595620390893, 1.0)),
+    ):
+        got = Trajectory.from_nurbs(piece, 1.0)
+        s = np.linspace(0.0, 1.0, 17)
+        np.testing.assert_allclose(got.at(s), tr.at(a + (b - a) * s), atol=1e-12)
+    with pytest.raises(InputError, match="knots: expected a clamped vector"):
+        Trajectory.from_definition(3, [0, 0, 0, 0, 0.999999, 0.999999, 0.999999, 1], np.eye(4, 2))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rotated_copy_is_fitted_the_same_way(dim):
+    # issue 12: the default tolerance followed the bounding box, so a rotated copy got
+    # another control-point count and matched its original at RMSD 5e-4 instead of 0
+    from scipy.spatial.transform import Rotation
+
+    t = np.arange(600) * 0.005
+    pts = np.c_[40 * np.cos(t), 15 * np.sin(2 * t), 3 * t][:, :dim]
+    R = Rotation.from_euler("zyx", [37, 21, -12], degrees=True).as_matrix()[:dim, :dim]
+    if dim == 2:
+        R = Rotation.from_euler("z", 37, degrees=True).as_matrix()[:2, :2]
+    a = Trajectory.from_samples(pts, 0.005)
+    b = Trajectory.from_samples(pts @ R.T, 0.005)
+    assert a.n_ctrlpts == b.n_ctrlpts
+    diff = b.sample(0.005) - a.sample(0.005) @ R.T
+    rmsd = float(np.sqrt((diff**2).sum(axis=1).mean()))
+    assert rmsd < 1e-12 * 40

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 from typing import Any
 
@@ -10,7 +9,16 @@ import numpy as np
 from scipy.interpolate import BSpline
 
 from primlib._errors import InputError
+from primlib.defaults import FIT_RTOL
 from primlib.nurbs._basis import insert_knot, multiplicity
+from primlib.nurbs._checks import (
+    clamped_knots,
+    degree_of,
+    frozen,
+    points_of,
+    positive,
+    radius,
+)
 from primlib.nurbs._fit import fit_samples
 from primlib.nurbs._geomdl import (
     definition_from_exchange,
@@ -24,49 +32,15 @@ __all__ = ["Trajectory", "MIN_SAMPLES", "DEFAULT_RTOL", "V_SLACK", "DT_RTOL"]
 MIN_SAMPLES = 8
 """Fewest samples :meth:`Trajectory.from_samples` accepts."""
 
-DEFAULT_RTOL = 1e-4
-"""Default fit tolerance as a fraction of the extent (largest bounding-box side)."""
+DEFAULT_RTOL = FIT_RTOL
+"""Default fit tolerance as a fraction of the samples' radius (largest distance from their
+centroid), :data:`primlib.defaults.FIT_RTOL`."""
 
 V_SLACK = 1e-12
 """How far outside [0, 1] a normalised time may stray (rounding) before it is an error."""
 
 DT_RTOL = 1e-6
 """Relative tolerance (of dt) for the duration being a whole number of sample steps."""
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=np.float64, copy=True)
-    a.setflags(write=False)
-    return a
-
-
-def _positive(value: Any, name: str, unit: str = "") -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name}: expected a positive number{unit}, got {value!r}") from None
-    if not (math.isfinite(x) and x > 0):
-        raise InputError(f"{name}: expected a positive finite number{unit}, got {value!r}")
-    return x
-
-
-def _degree(degree: Any) -> int:
-    if isinstance(degree, bool) or not isinstance(degree, int | np.integer) or degree < 1:
-        raise InputError(f"degree: expected an integer >= 1, got {degree!r}")
-    return int(degree)
-
-
-def _points(points: Any, name: str = "points") -> np.ndarray:
-    try:
-        arr = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name}: expected a numeric array of shape (n, 2) or (n, 3)") from None
-    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
-        raise InputError(f"{name}: expected shape (n, 2) or (n, 3), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        row = int(np.argwhere(~np.isfinite(arr))[0, 0])
-        raise InputError(f"{name}: expected finite values, got NaN or inf in row {row}")
-    return arr
 
 
 class Trajectory:
@@ -134,11 +108,11 @@ class Trajectory:
         fit_error: float | None = None,
     ) -> None:
         # Internal: arguments are already checked; use the from_* constructors.
-        weights = _frozen(weights)
+        weights = frozen(weights)
         init = object.__setattr__
         init(self, "degree", int(degree))
-        init(self, "knots", _frozen(knots))
-        init(self, "ctrlpts", _frozen(ctrlpts))
+        init(self, "knots", frozen(knots))
+        init(self, "ctrlpts", frozen(ctrlpts))
         init(self, "weights", weights)
         init(self, "duration", float(duration))
         init(self, "dim", int(self.ctrlpts.shape[1]))
@@ -196,8 +170,8 @@ class Trajectory:
             Sample time in seconds, > 0. The duration is T = (n - 1) dt.
         tol : float, optional
             Largest allowed distance (Euclidean, user units) between the curve and any
-            sample; default 1e-4 times the extent (largest side of the samples' bounding
-            box).
+            sample; default :data:`primlib.defaults.FIT_RTOL` (1e-4) times the samples'
+            radius (largest distance from their centroid), which a rotation keeps.
         degree : int, default 3
             Degree p of the curve.
         n_ctrlpts : int, optional
@@ -214,23 +188,25 @@ class Trajectory:
         Raises
         ------
         InputError
-            points not (n, 2) or (n, 3), NaN or inf, n < 8, dt <= 0, tol <= 0, a degree
+            points not (n, 2) or (n, 3), NaN, inf or a magnitude beyond
+            :data:`primlib.defaults.MAX_ABS_VALUE`, n < 8, dt <= 0, tol <= 0, a degree
             that is not an integer in 1 .. n - 1, n_ctrlpts outside p + 1 .. n.
         """
-        pts = _points(points)
-        dt = _positive(dt, "dt", " of seconds")
-        p = _degree(degree)
+        pts = points_of(points)
+        dt = positive(dt, "dt", " of seconds")
+        p = degree_of(degree)
         n = pts.shape[0]
         if n < MIN_SAMPLES:
             raise InputError(f"points: expected at least {MIN_SAMPLES} samples, got {n}")
         if p >= n:
             raise InputError(f"degree: expected an integer below the {n} samples, got {p}")
         if tol is None:
-            extent = float(np.ptp(pts, axis=0).max())
-            scale = extent if extent > 0 else max(1.0, float(np.abs(pts).max()))
+            # the radius, not the bounding box: a rotated copy is fitted the same way
+            size = radius(pts)
+            scale = size if size > 0 else max(1.0, float(np.abs(pts).max()))
             tol = DEFAULT_RTOL * scale
         else:
-            tol = _positive(tol, "tol", " (user units)")
+            tol = positive(tol, "tol", " (user units)")
         if n_ctrlpts is not None:
             if (
                 isinstance(n_ctrlpts, bool)
@@ -275,46 +251,12 @@ class Trajectory:
         InputError
             For any shape or value that breaks the rules above.
         """
-        p = _degree(degree)
-        ctrl = _points(ctrlpts, "ctrlpts")
+        p = degree_of(degree)
+        ctrl = points_of(ctrlpts, "ctrlpts")
         m = ctrl.shape[0]
         if m < p + 1:
             raise InputError(f"ctrlpts: expected at least degree + 1 = {p + 1} points, got {m}")
-        try:
-            kv = np.asarray(knots, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InputError("knots: expected a numeric array") from None
-        if kv.shape != (m + p + 1,):
-            raise InputError(
-                f"knots: expected shape ({m + p + 1},) for {m} control points of degree {p}, "
-                f"got {kv.shape}"
-            )
-        if not np.isfinite(kv).all() or np.any(np.diff(kv) < 0):
-            raise InputError("knots: expected finite non-decreasing values, got otherwise")
-        if (
-            kv[0] == kv[-1]
-            or np.any(kv[: p + 1] != kv[0])
-            or np.any(kv[-p - 1 :] != kv[-1])
-            or kv[p + 1] == kv[0]
-            or kv[-p - 2] == kv[-1]
-        ):
-            raise InputError(
-                f"knots: expected a clamped vector (exactly {p + 1} equal knots at each end) "
-                f"spanning a non-empty interval, got {kv[: p + 1].tolist()} ... "
-                f"{kv[-p - 1 :].tolist()}"
-            )
-        interior = kv[p + 1 : -p - 1]
-        if interior.size:
-            _, counts = np.unique(interior, return_counts=True)
-            if counts.max() > p:
-                raise InputError(
-                    f"knots: expected interior multiplicity at most the degree {p} "
-                    f"(a continuous path), got {int(counts.max())}"
-                )
-        if kv[0] != 0.0 or kv[-1] != 1.0:
-            kv = (kv - kv[0]) / (kv[-1] - kv[0])
-            kv[: p + 1] = 0.0
-            kv[-p - 1 :] = 1.0
+        kv = clamped_knots(knots, m, p)
         if weights is None:
             w = np.ones(m)
         else:
@@ -326,7 +268,7 @@ class Trajectory:
                 raise InputError(f"weights: expected shape ({m},), got {w.shape}")
             if not (np.isfinite(w).all() and np.all(w > 0)):
                 raise InputError("weights: expected positive finite values, got otherwise")
-        T = _positive(duration, "duration", " of seconds")
+        T = positive(duration, "duration", " of seconds")
         return cls(p, kv, ctrl, w, T)
 
     @classmethod
@@ -513,7 +455,7 @@ class Trajectory:
         return self._derivatives(self._params(v), 2)[2] / self.duration**2
 
     def _count(self, dt: Any) -> int:
-        dt = _positive(dt, "dt", " of seconds")
+        dt = positive(dt, "dt", " of seconds")
         steps = round(self.duration / dt)
         if steps < 1 or abs(steps * dt - self.duration) > DT_RTOL * dt:
             raise InputError(
@@ -599,7 +541,7 @@ class Trajectory:
         InputError
             If duration is not a positive finite number.
         """
-        T = _positive(duration, "duration", " of seconds")
+        T = positive(duration, "duration", " of seconds")
         return Trajectory(self.degree, self.knots, self.ctrlpts, self.weights, T)
 
     def transformed(self, rotation: Any = None, translation: Any = None) -> Trajectory:
