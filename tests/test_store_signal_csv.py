@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from primlib import InputError
+from primlib.defaults import MAX_ABS_VALUE
 from primlib.io import read_signal_csv, write_signal_csv
 
 
@@ -20,7 +21,8 @@ from primlib.io import read_signal_csv, write_signal_csv
     data=st.data(),
 )
 def test_round_trip_is_bit_exact(tmp_path_factory, n, d, dt, data):
-    floats = st.floats(allow_nan=False, allow_infinity=False, width=64)
+    big = MAX_ABS_VALUE
+    floats = st.floats(-big, big, allow_nan=False, allow_infinity=False, width=64)
     u = data.draw(hnp.arrays(np.float64, (n, d), elements=floats))
     t = np.arange(n) * dt
     f = tmp_path_factory.mktemp("sig") / "u.csv"

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from primlib._errors import InputError
+from primlib.defaults import MAX_ABS_VALUE
 
 __all__ = ["read_uniform_table", "parse_uniform_table", "write_table", "MIN_ROWS", "T_RTOL"]
 
@@ -81,7 +82,8 @@ def read_uniform_table(
     InputError
         One sentence naming the file (and the line where one applies) for: a missing or
         unreadable file, an empty file, a header that is not one of ``headers``, a row with
-        the wrong number of columns, a cell that is not a number, NaN or inf, fewer than
+        the wrong number of columns, a cell that is not a number, NaN or inf or a magnitude
+        beyond :data:`primlib.defaults.MAX_ABS_VALUE`, fewer than
         :data:`MIN_ROWS` rows, t not starting at 0, t not increasing, or t not uniform
         (every step within :data:`T_RTOL` times the mean step of the mean step).
 
@@ -166,14 +168,30 @@ def parse_uniform_table(
     if n < MIN_ROWS:
         raise InputError(f"{path}: expected at least {MIN_ROWS} {what} rows, got {n}")
 
-    bad = ~np.isfinite(table)
+    _check_values(path, table, got)
+    return _check_grid(path, table)
+
+
+def _check_values(path: Path, table: np.ndarray, names: Sequence[str]) -> None:
+    """Every cell finite and within :data:`primlib.defaults.MAX_ABS_VALUE`."""
+    bad = ~(np.abs(table) <= MAX_ABS_VALUE)  # NaN compares False
     if bad.any():
         row, col = np.argwhere(bad)[0]
+        value = float(table[row, col])
+        want = (
+            "a finite number"
+            if not np.isfinite(value)
+            else f"a magnitude at most {MAX_ABS_VALUE:g} (primlib.defaults.MAX_ABS_VALUE)"
+        )
         raise InputError(
-            f"{path}, line {row + 2}: expected a finite number in column {col + 1} "
-            f"({got[col]}), got {float(table[row, col])}"
+            f"{path}, line {row + 2}: expected {want} in column {col + 1} "
+            f"({names[col]}), got {value:g}"
         )
 
+
+def _check_grid(path: Path, table: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split off t and check it starts at 0 and is uniform."""
+    n = table.shape[0]
     t = np.ascontiguousarray(table[:, 0])
     values = np.ascontiguousarray(table[:, 1:])
     steps = np.diff(t)

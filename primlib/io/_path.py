@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import InputError
+from primlib.defaults import MIN_EXTENT_REL
 from primlib.io._csv import parse_uniform_table, read_uniform_table, write_table, write_text_atomic
 
 __all__ = [
@@ -19,6 +20,7 @@ __all__ = [
     "write_path_csv",
     "read_path_json",
     "write_path_json",
+    "check_moving",
 ]
 
 PATH_HEADERS = [("t", "x", "y"), ("t", "x", "y", "z")]
@@ -43,7 +45,7 @@ def read_path_csv(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     Raises
     ------
     InputError
-        For any malformed file (see :func:`primlib.io._csv.read_uniform_table`).
+        For any malformed file (see :func:`primlib.io.read_uniform_table`).
     """
     return read_uniform_table(path, PATH_HEADERS, "path")
 
@@ -54,6 +56,35 @@ def parse_path_csv(text: str, label: str) -> tuple[np.ndarray, np.ndarray]:
     Errors name ``label`` where :func:`read_path_csv` names the file.
     """
     return parse_uniform_table(text, PATH_HEADERS, "path", label)
+
+
+def check_moving(points: np.ndarray, source: str) -> None:
+    """Refuse a path that does not move: nothing to match, nothing to learn.
+
+    Its extent (largest distance of a point from the centroid) must be at least
+    :data:`primlib.defaults.MIN_EXTENT_REL` times its largest coordinate magnitude (or
+    times 1 unit, whichever is larger): below that the points differ only by rounding.
+
+    Parameters
+    ----------
+    points : array, shape (n, d)
+        Finite positions.
+    source : str
+        Where they came from (a file name), for the message.
+
+    Raises
+    ------
+    InputError
+        If the path does not move.
+    """
+    centred = points - points.mean(axis=0)
+    extent = float(np.sqrt(np.einsum("ij,ij->i", centred, centred).max()))
+    floor = MIN_EXTENT_REL * max(1.0, float(np.abs(points).max()))
+    if not extent >= floor:
+        raise InputError(
+            f"{source}: expected a path that moves (extent at least {floor:.3g}), got one "
+            f"that stays within {extent:.3g} of its centre"
+        )
 
 
 def write_path_csv(path: str | os.PathLike, t: np.ndarray, points: np.ndarray) -> None:
