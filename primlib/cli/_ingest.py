@@ -65,10 +65,10 @@ def _read_one(
     path: Path, signal: Path | None, m: Machine, learn: bool
 ) -> tuple[Trajectory, np.ndarray | None]:
     """Read, check and fit one path (and read its signal); errors name the file."""
-    from primlib.io import read_path_csv, read_signal_csv
-    from primlib.nurbs import Trajectory
+    from primlib.io import read_signal_csv
+    from primlib.nurbs import Trajectory, read_path_samples
 
-    t, points = read_path_csv(path)
+    t, points = read_path_samples(path, m.dt)
     dt = (t[-1] - t[0]) / (len(t) - 1)
     if abs(dt - m.dt) > _DT_RTOL * m.dt:
         raise InputError(

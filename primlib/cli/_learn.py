@@ -166,7 +166,7 @@ def learn(
 
     primlib learn data/paths/zigzag.csv --machine xyz --plot warm-start.png
     """
-    from primlib.nurbs import Trajectory
+    from primlib.nurbs import read_path
     from primlib.pipeline import Library, check_law, store_learned
     from primlib.store import Store, check_name
 
@@ -177,7 +177,7 @@ def learn(
     stored_name = path.stem if name is None else name
     if ingest:
         check_name("--name", "the primitive's name", stored_name)
-    trajectory = Trajectory.from_csv(path)
+    trajectory = read_path(path)
     db = ctx.find_root().obj["db"]
     opts = {"iterations": iterations, "eps": eps, "band": band, "law": law, "tol": tol}
     # Learn with the library open read-only (other readers and writers are not locked out

@@ -118,8 +118,8 @@ def match(
     """
     from primlib.cli._library import _db, _open_library
     from primlib.cli._output import FIGURE_FORMATS, TABLE_FORMATS, check_output
-    from primlib.io import read_path_csv
-    from primlib.match import check_path_samples, default_eps
+    from primlib.match import default_eps
+    from primlib.nurbs import read_path
 
     if eps is not None and not (np.isfinite(eps) and eps > 0):
         raise InputError(f"--eps: expected a tolerance > 0, got {eps:g}")
@@ -128,11 +128,9 @@ def match(
     check_output("--out", out_file, TABLE_FORMATS, inputs)
     if plot_file is not None and ctx.find_root().obj.get("remote"):
         raise click.UsageError("--plot: draws from the library file; not with --remote")
-    t, samples = read_path_csv(path_csv)
-    check_path_samples(samples, str(path_csv))
-    from primlib.nurbs import Trajectory
-
-    traj = Trajectory.from_samples(samples, float(t[-1]) / (t.shape[0] - 1))
+    # a CSV table or a geomdl JSON curve; values beyond MAX_ABS_VALUE or a path that does
+    # not move are refused here, with the file's name
+    traj = read_path(path_csv)
     with _open_library(ctx, read_only=True, remote=True) as lib:
         m = lib.machine(machine_name)
         if traj.dim != m.dim:

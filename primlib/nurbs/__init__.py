@@ -18,6 +18,15 @@ held and exchanged as a geomdl ``NURBS.Curve`` (``.nurbs``, JSON), and evaluated
 """
 
 from primlib.nurbs._batch import sample_many
+from primlib.nurbs._files import is_json_path, read_path, read_path_samples
 from primlib.nurbs._trajectory import DEFAULT_RTOL, MIN_SAMPLES, Trajectory
 
-__all__ = ["Trajectory", "DEFAULT_RTOL", "MIN_SAMPLES", "sample_many"]
+__all__ = [
+    "Trajectory",
+    "DEFAULT_RTOL",
+    "MIN_SAMPLES",
+    "sample_many",
+    "read_path",
+    "read_path_samples",
+    "is_json_path",
+]
