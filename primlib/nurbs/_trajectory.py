@@ -33,8 +33,8 @@ MIN_SAMPLES = 8
 """Fewest samples :meth:`Trajectory.from_samples` accepts."""
 
 DEFAULT_RTOL = FIT_RTOL
-"""Default fit tolerance as a fraction of the samples' radius (largest distance from their
-centroid), :data:`primlib.defaults.FIT_RTOL`."""
+"""Default fit tolerance as a fraction of the samples' size, twice their largest distance
+from the centroid (:data:`primlib.defaults.FIT_RTOL`)."""
 
 V_SLACK = 1e-12
 """How far outside [0, 1] a normalised time may stray (rounding) before it is an error."""
@@ -171,7 +171,8 @@ class Trajectory:
         tol : float, optional
             Largest allowed distance (Euclidean, user units) between the curve and any
             sample; default :data:`primlib.defaults.FIT_RTOL` (1e-4) times the samples'
-            radius (largest distance from their centroid), which a rotation keeps.
+            size: twice their largest distance from the centroid, which a rotation keeps
+            (about the largest side of the bounding box, which it does not).
         degree : int, default 3
             Degree p of the curve.
         n_ctrlpts : int, optional
@@ -201,8 +202,9 @@ class Trajectory:
         if p >= n:
             raise InputError(f"degree: expected an integer below the {n} samples, got {p}")
         if tol is None:
-            # the radius, not the bounding box: a rotated copy is fitted the same way
-            size = radius(pts)
+            # from the centroid, not the bounding box: a rotated copy is fitted the same way;
+            # twice the radius keeps the old scale (a straight line's length)
+            size = 2.0 * radius(pts)
             scale = size if size > 0 else max(1.0, float(np.abs(pts).max()))
             tol = DEFAULT_RTOL * scale
         else:
