@@ -128,10 +128,10 @@ def test_ingest_with_signal_stores_what_the_files_hold(tmp_path, db):
         _, u_file = read_signal_csv(other_signal)
         np.testing.assert_array_equal(lib.signal(info.id), u_file)
         np.testing.assert_array_equal(lib.signal(info.id), u)
-        # the fitted path is within the fit tolerance (1e-4 of the extent) of the samples
+        # the fitted path is within the fit tolerance (1e-4 of twice the radius) of the samples
         _, pts = path_points(1)
-        extent = np.ptp(pts, axis=0).max()
-        assert np.abs(lib.get(info.id).points - pts).max() <= 1e-4 * extent * (1 + 1e-9)
+        size = 2.0 * np.sqrt(((pts - pts.mean(axis=0)) ** 2).sum(axis=1).max())
+        assert np.abs(lib.get(info.id).points - pts).max() <= 1e-4 * size * (1 + 1e-9)
 
 
 def test_ingest_many_reads_sibling_signals(tmp_path, db):

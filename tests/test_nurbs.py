@@ -10,6 +10,7 @@ from geomdl import NURBS, exchange
 from geomdl import BSpline as GBSpline
 
 from primlib import InputError
+from primlib.defaults import FIT_RTOL
 from primlib.io import read_path_csv
 from primlib.nurbs import Trajectory
 
@@ -37,11 +38,16 @@ def _rational_cubic():
 
 
 # ---------------------------------------------------------------- fitting
+def _size(pts):
+    """The default fit tolerance's size: twice the largest distance from the centroid."""
+    return 2.0 * np.sqrt(((pts - pts.mean(axis=0)) ** 2).sum(axis=1).max())
+
+
 @pytest.mark.parametrize("d", [2, 3])
 def test_fit_meets_default_tolerance_with_few_control_points(d):
     pts = _lissajous(d=d)
     tr = Trajectory.from_samples(pts, dt=0.005)
-    tol = 1e-4 * np.ptp(pts, axis=0).max()
+    tol = FIT_RTOL * _size(pts)
     assert tr.dim == d and tr.degree == 3 and not tr.rational
     assert tr.duration == pytest.approx(399 * 0.005, rel=1e-15)
     assert tr.dt == 0.005
@@ -460,3 +466,33 @@ def test_rotated_copy_is_fitted_the_same_way(dim):
     diff = b.sample(0.005) - a.sample(0.005) @ R.T
     rmsd = float(np.sqrt((diff**2).sum(axis=1).mean()))
     assert rmsd < 1e-12 * 40
+
+
+@pytest.mark.parametrize(
+    "name", ["paths/corner-and-arc.csv", "library/line-x-fast.csv", "library/arc-climb.csv"]
+)
+def test_fit_of_a_path_at_rest_does_not_run_backwards(name):
+    # issue 12: minimum-jerk starts were fitted with a control point behind the start
+    # (x = -2.6e-5 on corner-and-arc, up to 1.1e-3 of travel on line-x): a cusp
+    from pathlib import Path
+
+    f = Path(__file__).resolve().parents[1] / "data" / name
+    t, p = read_path_csv(f)
+    tr = Trajectory.from_csv(f)
+    assert tr.fit_error <= FIT_RTOL * _size(p)
+    np.testing.assert_array_equal(tr.velocity([0.0, 1.0]), np.zeros((2, 3)))
+    v = np.linspace(0.0, 1.0, 400_001)
+    q = tr.at(v)
+    for end, head in ((p[0], q[:4000]), (p[-1], q[-4000:][::-1])):
+        moved = head - end
+        direction = moved[-1] / np.linalg.norm(moved[-1])
+        # along the samples' direction of travel, never behind the end point
+        assert (moved @ direction).min() >= 0.0
+
+
+def test_fit_of_a_moving_end_is_not_held_at_rest():
+    pts = _lissajous(d=3)
+    tr = Trajectory.from_samples(pts, dt=0.005)
+    sample_velocity = (pts[1] - pts[0]) / 0.005
+    got = tr.velocity(0.0)
+    assert got @ sample_velocity > 0.99 * np.linalg.norm(got) * np.linalg.norm(sample_velocity)

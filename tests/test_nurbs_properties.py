@@ -7,6 +7,7 @@ from geomdl import exchange
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from primlib.defaults import FIT_RTOL
 from primlib.io import read_path_csv
 from primlib.nurbs import Trajectory
 
@@ -65,7 +66,7 @@ def _random_rotation(rng, d):
 def test_fit_is_within_tolerance_and_hits_the_ends(case):
     pts, dt = case
     tr = Trajectory.from_samples(pts, dt)
-    tol = 1e-4 * np.ptp(pts, axis=0).max()
+    tol = FIT_RTOL * 2.0 * np.sqrt(((pts - pts.mean(axis=0)) ** 2).sum(axis=1).max())
     assert np.linalg.norm(tr.sample(dt) - pts, axis=1).max() <= tol
     np.testing.assert_array_equal(tr.at([0.0, 1.0]), pts[[0, -1]])
     assert tr.duration == (len(pts) - 1) * dt
