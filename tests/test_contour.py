@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -13,6 +15,8 @@ from primlib.contour import (
     ellipse_closest_point,
     ellipse_contour_error,
 )
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 class Analytic:
@@ -293,3 +297,38 @@ def test_nurbs_trajectory_path(method):
     # the fit is within 1e-7 of the ellipse; linear/circular add their own O(e^2) terms
     tol = {"exact": 1e-6, "circular": 1e-5, "linear": 5e-4}[method]
     np.testing.assert_allclose(e, exact, atol=tol)
+
+
+@pytest.mark.parametrize("as_trajectory", [False, True])
+def test_exact_is_the_true_closest_point_at_the_ends_of_a_noisy_ellipse(as_trajectory):
+    # issue 12: 20 mm ellipse sampled at 1 ms, 0.05 mm noise on the actual positions; near
+    # the start the closest point lies on the branch arriving at the (nearly closed) end,
+    # which the arc-length window did not reach: sample 2 was off by 0.024 mm
+    from primlib.nurbs import Trajectory
+
+    dt = 1e-3
+    t = np.arange(0.0, 2 * np.pi, dt)
+    ref = np.c_[10 * np.sin(t), 5 * np.cos(t)]
+    actual = ref + np.random.default_rng(0).normal(scale=0.05, size=ref.shape)
+    ends = np.r_[0:40, len(t) - 40 : len(t), 40 : len(t) - 40 : 97]
+    if as_trajectory:
+        path = slow = Trajectory.from_samples(ref, dt)
+    else:  # the samples' spline, as a Trajectory-like path so brute force runs on a subset
+        path, spline = ref, CubicSpline(t, ref, axis=0)
+        slow = Analytic(spline, lambda s: spline(s, 1), lambda s: spline(s, 2), t[-1])
+    e = contour_error(path, t, actual)[ends]
+    bf = brute_force_contour_error(slow, t[ends], actual[ends], samples=50_000)
+    np.testing.assert_allclose(e, bf, atol=1e-6)  # brute force resolves ~1e-8 mm here
+
+
+def test_contour_sign_just_behind_a_start_at_rest():
+    # issue 12: the fit of a path starting at rest put a control point behind the start,
+    # so the exact estimate of a point just behind it had the wrong sign (-1e-3)
+    from primlib.io import read_path_csv
+    from primlib.nurbs import Trajectory
+
+    t, p = read_path_csv(ROOT / "data" / "paths" / "corner-and-arc.csv")
+    tr = Trajectory.from_samples(p[:, :2], t[1])
+    for method in METHODS:
+        e = contour_error(tr, [0.02], [[-1e-6, 1e-3]], method=method)
+        np.testing.assert_allclose(e, [1e-3], rtol=1e-3, err_msg=method)

@@ -187,52 +187,84 @@ class ContourEstimator:
         return ContourEstimate(e, nrm, s_star)
 
     def _closest(self, s: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """Path time of the closest point to each ``p`` near the reference time ``s``."""
+        """Path time of the closest point to each ``p`` near the reference time ``s``.
+
+        The search window is the arc ``|arc - arc(s)| <= window |p - r(s)|``. Where it runs
+        past an end of the path and the path's other end lies within that reach of this one
+        (a closed contour, or one that nearly closes), the window continues from the other
+        end: the closest point on the curve may lie on the branch that arrives there.
+        """
         c = self.curve
-        m = p.shape[0]
         nn = c.node_s.size
         delta = np.linalg.norm(p - c.pos(s), axis=1)
         arc0 = np.interp(s, c.node_s, c.cum)
         reach = self.window * delta
-        lo = np.clip(np.searchsorted(c.cum, arc0 - reach, side="left") - 2, 0, nn - 2)
-        hi = np.clip(np.searchsorted(c.cum, arc0 + reach, side="right") + 2, lo + 1, nn - 1)
-        nseg = hi - lo
-        # coarse: the nearest polyline node in the window, in blocks of equal width (one
-        # gather per coordinate), then the nearer of its two segments
-        jnode = np.empty(m, dtype=np.intp)
-        width = 1 << np.ceil(np.log2(nseg + 1)).astype(int)
-        cols = [np.ascontiguousarray(c.node_p[:, k]) for k in range(c.dim)]
-        for k in np.unique(width):
-            rows = np.flatnonzero(width == k)
-            step = max(1, _CHUNK // int(k))
-            for i0 in range(0, rows.size, step):
-                rr = rows[i0 : i0 + step]
-                j = np.minimum(lo[rr, None] + np.arange(k), hi[rr, None])
-                d2 = (cols[0][j] - p[rr, 0, None]) ** 2
-                for ax in range(1, c.dim):
-                    d2 += (cols[ax][j] - p[rr, ax, None]) ** 2
-                jnode[rr] = j[np.arange(rr.size), np.argmin(d2, axis=1)]
+        jnode = _nearest_node(c, p, arc0 - reach, arc0 + reach)
+        length = c.cum[-1]
+        gap = float(np.linalg.norm(c.node_p[-1] - c.node_p[0]))
+        closes = gap <= reach
+        for wrap, a0, a1 in (
+            (closes & (arc0 - reach < 0), length - (reach - arc0), np.full_like(arc0, length)),
+            (closes & (arc0 + reach > length), np.zeros_like(arc0), arc0 + reach - length),
+        ):
+            rows = np.flatnonzero(wrap)
+            if rows.size:
+                other = _nearest_node(c, p[rows], a0[rows], a1[rows])
+                d_own = np.linalg.norm(c.node_p[jnode[rows]] - p[rows], axis=1)
+                d_other = np.linalg.norm(c.node_p[other] - p[rows], axis=1)
+                jnode[rows] = np.where(d_other < d_own, other, jnode[rows])
         seg_pick = np.stack([np.maximum(jnode - 1, 0), np.minimum(jnode, nn - 2)], axis=1)
-        a = c.node_p[seg_pick]
-        sv = c.seg[seg_pick]
-        l2 = c.seg_len2[seg_pick]
-        q = p[:, None, :] - a
-        w = np.clip(np.einsum("ijk,ijk->ij", q, sv) / np.where(l2 > 0, l2, 1.0), 0.0, 1.0)
-        diff = q - w[..., None] * sv
-        kk = np.argmin(np.einsum("ijk,ijk->ij", diff, diff), axis=1)
-        jbest = seg_pick[np.arange(m), kk]
-        wbest = w[np.arange(m), kk]
-        ns = c.node_s
-        s_init = ns[jbest] + wbest * (ns[jbest + 1] - ns[jbest])
-        blo = ns[np.maximum(jbest - 1, 0)]
-        bhi = ns[np.minimum(jbest + 2, nn - 1)]
-        s_newton = _safeguarded_newton(c, p, s_init, blo, bhi)
-        # keep the best of Newton, the coarse estimate and the bracket ends: never worse
-        # than the polyline search, whatever the curve does inside the bracket
-        cand = np.stack([s_newton, s_init, blo, bhi], axis=1)
-        pts = c.pos(cand.ravel()).reshape(m, 4, -1)
-        d2 = np.einsum("ijk,ijk->ij", pts - p[:, None], pts - p[:, None])
-        return cand[np.arange(m), np.argmin(d2, axis=1)]
+        return _refine(c, p, seg_pick)
+
+
+def _nearest_node(c: Curve, p: np.ndarray, arc_lo, arc_hi) -> np.ndarray:
+    """Index of the polyline node nearest to each point within its arc-length window
+    (widened by two nodes each side), searched in blocks of equal width."""
+    m = p.shape[0]
+    nn = c.node_s.size
+    lo = np.clip(np.searchsorted(c.cum, arc_lo, side="left") - 2, 0, nn - 2)
+    hi = np.clip(np.searchsorted(c.cum, arc_hi, side="right") + 2, lo + 1, nn - 1)
+    nseg = hi - lo
+    jnode = np.empty(m, dtype=np.intp)
+    width = 1 << np.ceil(np.log2(nseg + 1)).astype(int)
+    cols = [np.ascontiguousarray(c.node_p[:, k]) for k in range(c.dim)]
+    for k in np.unique(width):
+        rows = np.flatnonzero(width == k)
+        step = max(1, _CHUNK // int(k))
+        for i0 in range(0, rows.size, step):
+            rr = rows[i0 : i0 + step]
+            j = np.minimum(lo[rr, None] + np.arange(k), hi[rr, None])
+            d2 = (cols[0][j] - p[rr, 0, None]) ** 2
+            for ax in range(1, c.dim):
+                d2 += (cols[ax][j] - p[rr, ax, None]) ** 2
+            jnode[rr] = j[np.arange(rr.size), np.argmin(d2, axis=1)]
+    return jnode
+
+
+def _refine(c: Curve, p: np.ndarray, seg_pick: np.ndarray) -> np.ndarray:
+    """The nearer of each point's two candidate segments, then Newton on the curve."""
+    m = p.shape[0]
+    nn = c.node_s.size
+    a = c.node_p[seg_pick]
+    sv = c.seg[seg_pick]
+    l2 = c.seg_len2[seg_pick]
+    q = p[:, None, :] - a
+    w = np.clip(np.einsum("ijk,ijk->ij", q, sv) / np.where(l2 > 0, l2, 1.0), 0.0, 1.0)
+    diff = q - w[..., None] * sv
+    kk = np.argmin(np.einsum("ijk,ijk->ij", diff, diff), axis=1)
+    jbest = seg_pick[np.arange(m), kk]
+    wbest = w[np.arange(m), kk]
+    ns = c.node_s
+    s_init = ns[jbest] + wbest * (ns[jbest + 1] - ns[jbest])
+    blo = ns[np.maximum(jbest - 1, 0)]
+    bhi = ns[np.minimum(jbest + 2, nn - 1)]
+    s_newton = _safeguarded_newton(c, p, s_init, blo, bhi)
+    # keep the best of Newton, the coarse estimate and the bracket ends: never worse
+    # than the polyline search, whatever the curve does inside the bracket
+    cand = np.stack([s_newton, s_init, blo, bhi], axis=1)
+    pts = c.pos(cand.ravel()).reshape(m, 4, -1)
+    d2 = np.einsum("ijk,ijk->ij", pts - p[:, None], pts - p[:, None])
+    return cand[np.arange(m), np.argmin(d2, axis=1)]
 
 
 def _safeguarded_newton(c: Curve, p, s, lo, hi, iterations: int = 60) -> np.ndarray:
