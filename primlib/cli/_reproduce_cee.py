@@ -38,7 +38,7 @@ def cee_mfac(as_json, plot_dir, duration, ccc_gain):
 
     study = cee_mfac_study(duration=duration, ccc_gain=ccc_gain)
     if plot_dir is not None:
-        from primlib.plot._cee import plot_cee
+        from primlib.plot import plot_cee
 
         for path in plot_cee(study, plot_dir):
             click.echo(f"wrote {path}", err=True)
