@@ -55,6 +55,19 @@ def _diagnose_rows(path: Path, body: list[str], ncol: int, first_line: int) -> N
                 ) from None
 
 
+def _read_text(path: Path, what: str) -> str:
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such {what} file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: expected a {what} CSV file, got a directory") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: expected a {what} CSV text file, got binary data") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the {what} file ({exc.strerror})") from None
+
+
 def read_uniform_table(
     path: str | os.PathLike, headers: Sequence[Sequence[str]], what: str
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -94,17 +107,7 @@ def read_uniform_table(
     (3, 0.0)
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such {what} file") from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: expected a {what} CSV file, got a directory") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: expected a {what} CSV text file, got binary data") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the {what} file ({exc.strerror})") from None
-
+    text = _read_text(path, what)
     return parse_uniform_table(text, headers, what, path)
 
 
