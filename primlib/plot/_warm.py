@@ -1,18 +1,54 @@
 """Figure of a warm start: the path and its segments, u0 with the junction bands, and the RMS
-tracking error per ILC iteration from the warm start and from zero."""
+tracking error per ILC iteration from the warm start and from zero.
+
+The words are the CLI's: a segment's time scaling is "model-based" or "model-free eq. (20)",
+an unmatched one is the model inverse; lengths carry the user's unit (mm) and inputs the
+machine's input unit ("input" when the machine does not name one).
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
-__all__ = ["plot_warm_start"]
+__all__ = ["plot_warm_start", "warm_start_figure", "METHOD_WORDS"]
+
+# splice's method names -> the CLI's words
+METHOD_WORDS = {
+    "identity": "stored signal",
+    "model": "model-based",
+    "direct": "model-free eq. (20)",
+    "inverse": "unmatched: model inverse",
+}
+
+# a transition band narrower than this fraction of the time axis is drawn this wide (it is
+# a few samples of a path seconds long: true to scale it would be a hairline)
+_MIN_BAND = 0.012
 
 
-def plot_warm_start(
-    out,
+def plot_warm_start(out, points, t, warm, rms_warm, rms_cold=None, **kwargs) -> Path:
+    """Draw the three panels of :func:`warm_start_figure` and save them to ``out``.
+
+    Parameters
+    ----------
+    out : path-like
+        Figure file (format from the suffix).
+    points, t, warm, rms_warm, rms_cold, **kwargs
+        See :func:`warm_start_figure`.
+
+    Returns
+    -------
+    Path
+    """
+    out = Path(out)
+    warm_start_figure(points, t, warm, rms_warm, rms_cold, **kwargs).savefig(out, dpi=110)
+    return out
+
+
+def warm_start_figure(
     points: np.ndarray,
     t: np.ndarray,
     warm,
@@ -21,91 +57,121 @@ def plot_warm_start(
     *,
     rms_inverse: np.ndarray | None = None,
     axes=("x", "y", "z"),
-) -> Path:
-    """Draw the three panels and save them.
+    length_unit: str = "mm",
+    input_unit: str | None = None,
+) -> Figure:
+    """The path by segment, u0 with its transition bands, and RMS per ILC iteration.
 
     Parameters
     ----------
-    out : path-like
-        Figure file (format from the suffix).
     points : array, shape (n, d)
         The new path on the machine's grid.
     t : array, shape (n,)
+        Its times (s).
     warm : WarmStart or None
-        Its ``u``, ``sample_segment``, ``bands``, ``methods`` are drawn (None: cold run).
+        Its ``u``, ``sample_segment``, ``bands``, ``methods``, ``match`` are drawn (None: a
+        cold run).
     rms_warm : array, shape (iters + 1,)
-        RMS tracking error per trial of the run that was made (warm, or cold).
-    rms_cold : array, shape (iters + 1,), optional
-        The same from zero, for comparison.
-    rms_inverse : array, optional
-        The same from the nominal-model inverse.
+        RMS tracking error per trial of the run that was made; row 0 is u0's trial.
+    rms_cold, rms_inverse : array, shape (iters + 1,), optional
+        The same from zero and from the nominal-model inverse, for comparison.
     axes : sequence of str
-        Axis names for the legend.
+        Axis names.
+    length_unit : str
+        The path's unit.
+    input_unit : str, optional
+        The machine's input unit; "input" when None.
 
     Returns
     -------
-    Path
+    matplotlib.figure.Figure
     """
-    out = Path(out)
-    fig, ax = plt.subplots(1, 3, figsize=(15, 4.5))
-    p = np.asarray(points)
+    fig = Figure(figsize=(15, 4.8), layout="constrained")
+    ax = fig.subplots(1, 3)
+    _draw_path(ax[0], np.asarray(points), np.asarray(t), warm, axes, length_unit)
+    _draw_input(ax[1], np.asarray(t), warm, axes, input_unit or "input")
+    _draw_rms(ax[2], rms_warm, rms_cold, rms_inverse, warm is not None, length_unit)
+    return fig
+
+
+def _segment_label(warm, j: int) -> str:
+    methods = warm.methods if warm is not None else ()
+    how = METHOD_WORDS.get(methods[j], methods[j]) if j < len(methods) else ""
+    name = None
+    segments = getattr(getattr(warm, "match", None), "segments", ())
+    if j < len(segments):
+        name = segments[j].primitive_name or (
+            None if segments[j].primitive is None else f"#{segments[j].primitive}"
+        )
+    head = f"{j + 1}: {name}" if name else f"{j + 1}"
+    return f"{head} ({how})" if how else head
+
+
+def _draw_path(ax, p, t, warm, axes, unit) -> None:
     seg = np.zeros(p.shape[0], int) if warm is None else np.asarray(warm.sample_segment)
     methods = () if warm is None else warm.methods
-    cmap = plt.get_cmap("tab10")
+    colours = [f"C{k}" for k in range(10)]
     for j in np.unique(seg):
         sel = seg == j
         unmatched = j < len(methods) and methods[j] == "inverse"
-        ax[0].plot(
+        ax.plot(
             p[sel, 0],
             p[sel, 1],
             lw=2.5,
-            color="0.6" if unmatched else cmap(j % 10),
+            color="0.6" if unmatched else colours[j % 10],
             ls=":" if unmatched else "-",
-            label=f"seg {j}"
-            + (" (unmatched)" if unmatched else f" ({methods[j]})" if j < len(methods) else ""),
+            label=_segment_label(warm, j) if warm is not None else "cold start",
         )
-    if warm is not None:
-        for b in warm.bands:
-            i = int(np.argmin(np.abs(t - b.junction)))
-            ax[0].plot(p[i, 0], p[i, 1], "ko", ms=4)
-    ax[0].set_aspect("equal", adjustable="datalim")
-    ax[0].set_xlabel(axes[0])
-    ax[0].set_ylabel(axes[1] if len(axes) > 1 else "")
-    ax[0].set_title("new path, matched segments (x-y view)")
-    ax[0].legend(fontsize=7, loc="best")
+    if warm is not None and warm.bands:
+        idx = [int(np.argmin(np.abs(t - b.junction))) for b in warm.bands]
+        ax.plot(p[idx, 0], p[idx, 1], "ko", ms=4, label="junction")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel(f"{axes[0]} ({unit})")
+    ax.set_ylabel(f"{axes[1]} ({unit})" if len(axes) > 1 else "")
+    ax.set_title("new path by matched segment (x-y view)")
+    ax.legend(fontsize=7, loc="best")
 
-    if warm is not None:
-        spliced = getattr(warm, "spliced", None)
-        for i in range(warm.u.shape[1]):
-            line = ax[1].plot(t, warm.u[:, i], lw=1, label=f"u0 {axes[i]}")[0]
-            if spliced is not None and not np.array_equal(spliced, warm.u):
-                ax[1].plot(t, spliced[:, i], lw=0.8, ls=":", color=line.get_color())
-        for b in warm.bands:
-            if b.end > b.start:
-                ax[1].axvspan(b.start, b.end, color="orange", alpha=0.3, lw=0)
-            ax[1].axvline(b.junction, color="k", lw=0.5, ls="--")
-        ax[1].set_title("warm-start input u0 (dotted: pieces before correction), bands shaded")
-        ax[1].legend(fontsize=7)
-    else:
-        ax[1].text(
-            0.5, 0.5, "cold start: u0 = 0", ha="center", va="center", transform=ax[1].transAxes
-        )
-    ax[1].set_xlabel("t [s]")
 
-    it = np.arange(len(rms_warm))
-    ax[2].semilogy(it, rms_warm, "o-", label="warm start" if warm is not None else "cold start")
-    if rms_cold is not None:
-        ax[2].semilogy(np.arange(len(rms_cold)), rms_cold, "s-", label="cold start (u0 = 0)")
-    if rms_inverse is not None:
-        ax[2].semilogy(
-            np.arange(len(rms_inverse)), rms_inverse, "^-", label="nominal-model inverse"
-        )
-    ax[2].set_xlabel("ILC iteration")
-    ax[2].set_ylabel("RMS tracking error")
-    ax[2].set_title("RMS error per iteration")
-    ax[2].grid(True, which="both", alpha=0.3)
-    ax[2].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+def _draw_input(ax, t, warm, axes, unit) -> None:
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel(f"u0 ({unit})")
+    if warm is None:
+        ax.text(0.5, 0.5, "cold start: u0 = 0", ha="center", va="center", transform=ax.transAxes)
+        return
+    span = float(t[-1] - t[0]) if t.size > 1 else 1.0
+    widened = False
+    for k, b in enumerate(warm.bands):
+        lo, hi = float(b.start), float(b.end)
+        if hi - lo < _MIN_BAND * span:
+            mid = 0.5 * (lo + hi) if hi > lo else float(b.junction)
+            lo, hi = mid - 0.5 * _MIN_BAND * span, mid + 0.5 * _MIN_BAND * span
+            widened = True
+        ax.axvspan(lo, hi, color="0.45", alpha=0.3, lw=0, label="_band" if k else "band")
+    if widened:  # say so on the figure: the shading is not to scale
+        for patch in ax.patches:
+            if patch.get_label() == "band":
+                patch.set_label(f"transition band (drawn {100 * _MIN_BAND:g} % of t wide)")
+    spliced = getattr(warm, "spliced", None)
+    for i in range(warm.u.shape[1]):
+        line = ax.plot(t, warm.u[:, i], lw=1, label=f"u0 {axes[i]}")[0]
+        if spliced is not None and not np.array_equal(spliced, warm.u):
+            ax.plot(t, spliced[:, i], lw=0.8, ls=":", color=line.get_color())
+    ax.set_title("warm-start input u0 (dotted: pieces before correction)")
+    ax.legend(fontsize=7)
+
+
+def _draw_rms(ax, rms_warm, rms_cold, rms_inverse, warm: bool, unit) -> None:
+    runs = (
+        (rms_warm, "o-", "warm start" if warm else "cold start (u0 = 0)"),
+        (rms_cold, "s-", "cold start (u0 = 0)"),
+        (rms_inverse, "^-", "nominal-model inverse"),
+    )
+    for rms, style, label in runs:
+        if rms is not None:
+            ax.semilogy(np.arange(len(rms)), rms, style, label=label)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("ILC iteration (0: the first trial, with u0)")
+    ax.set_ylabel(f"RMS tracking error ({unit})")
+    ax.set_title("RMS tracking error per iteration")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
