@@ -56,3 +56,38 @@ def test_study_bad_input():
         cee_mfac_study(duration=0.001)
     with pytest.raises(InputError, match="ccc_gain: expected a number >= 0"):
         cee_mfac_study(duration=0.1, ccc_gain=-1.0)
+
+
+@pytest.mark.slow
+def test_cli_sweep_smoke(tmp_path):
+    # issue 12: a sweep over feed speed, where the estimators part; progress on stderr
+    res = CliRunner().invoke(
+        main,
+        [
+            "reproduce", "cee-mfac", "--sweep", "--speeds", "12,20", "--revolutions", "1.5",
+            "--json", "--plot", str(tmp_path),
+        ],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["feed_mm_per_s"] == [120.0, 200.0]
+    for name in ("linear", "circular", "exact"):
+        m = out[name]
+        assert all(0 < a <= b for a, b in zip(m["e_mad"], m["e_max"], strict=True))
+        assert all(lag > 50.0 for lag in m["lag"])  # µm: the loop lags at these feeds
+    # the estimators' own errors: exact none, circular below linear, linear ~ kappa a^2 / 2
+    assert max(out["exact"]["estimate_error_max"]) < 1e-9
+    lin, circ = out["linear"]["estimate_error_max"], out["circular"]["estimate_error_max"]
+    assert circ[1] < lin[1] and lin[0] < lin[1]
+    assert "cee-mfac sweep runs (speed x estimator): 6/6" in res.stderr
+    assert (tmp_path / "cee-sweep.png").stat().st_size > 1000
+
+
+def test_cli_sweep_options_are_checked():
+    for args, msg in (
+        (["--sweep", "--duration", "1"], "--duration: not used with --sweep"),
+        (["--speeds", "1,2"], "--speeds: only used with --sweep"),
+        (["--sweep", "--speeds", "1,-2"], "expected positive rates"),
+    ):
+        res = CliRunner().invoke(main, ["reproduce", "cee-mfac", *args])
+        assert res.exit_code == 2 and msg in res.output, res.output

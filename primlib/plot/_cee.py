@@ -3,7 +3,8 @@
 ``plot_cee(study, directory)`` writes ``cee-fig4-contour.png`` (desired and actual contour),
 ``cee-fig5-tip.png`` (close-up at the ellipse's tip x = 10 mm, where the curvature is
 largest; the deviation is drawn magnified) and ``cee-fig6-error.png`` (contour error
-against time, four cases).
+against time, four cases). Given the feed-speed sweep (``cee_mfac_sweep``) it writes
+``cee-sweep.png``: e_max, e_mad and each estimator's own error against the peak feed.
 """
 
 from __future__ import annotations
@@ -38,12 +39,20 @@ def _magnified(run, error, gain):
     return ref + gain * error[:, None] * n
 
 
+_SWEEP_STYLE = {
+    "linear": {"color": "tab:gray", "ls": ":", "marker": "s"},
+    "circular": {"color": "tab:blue", "ls": "--", "marker": "^"},
+    "exact": {"color": "tab:red", "ls": "-", "marker": "o"},
+}
+
+
 def plot_cee(study, directory) -> list[Path]:
     """Write the study's figures into ``directory`` (created if missing).
 
     Parameters
     ----------
-    study : primlib.reproduce._cee_mfac.CEEStudy
+    study : primlib.reproduce.CEEStudy or primlib.reproduce.CEESweep
+        The single-point study (Figs. 4-6) or the feed-speed sweep (one figure).
     directory : str or Path
 
     Returns
@@ -52,6 +61,8 @@ def plot_cee(study, directory) -> list[Path]:
     """
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
+    if hasattr(study, "feed"):
+        return [_plot_sweep(study, out / "cee-sweep.png")]
     written = []
     first = next(iter(study.runs.values()))
     ref = first.reference
@@ -98,3 +109,41 @@ def plot_cee(study, directory) -> list[Path]:
     written.append(out / "cee-fig6-error.png")
     fig.savefig(written[-1], dpi=120)
     return written
+
+
+def _plot_sweep(sweep, path: Path) -> Path:
+    """e_max, e_mad (true contour error) and each estimator's own error against feed."""
+    fig = Figure(figsize=(7, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    panels = (
+        (sweep.e_max, "e_max (µm)"),
+        (sweep.e_mad, "e_mad (µm)"),
+        (sweep.estimate_error, "estimate error (µm)"),
+    )
+    for ax, (values, label) in zip(axes, panels, strict=True):
+        for name, style in _SWEEP_STYLE.items():
+            y = values[name]
+            if ax is axes[2] and name == "exact":
+                continue  # exact by construction (the ellipse quartic): zero error
+            ax.plot(sweep.feed, y, lw=1.2, ms=4, **style, label=f"MFAC + {name} estimate")
+        ax.set_ylabel(label)
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[2].plot(
+        sweep.feed, sweep.lag["exact"], color="k", lw=1.0, alpha=0.6, label="tracking lag (µm)"
+    )
+    axes[0].set_title("largest |true contour error|", fontsize=9, loc="left")
+    axes[1].set_title("mean |true contour error|", fontsize=9, loc="left")
+    axes[2].set_title(
+        "largest |estimate − true contour error|, and the lag", fontsize=9, loc="left"
+    )
+    axes[0].legend(fontsize=8)
+    axes[2].legend(fontsize=8)
+    axes[2].set_xlabel("peak feed speed (mm/s)")
+    gain = sweep.settings.get("ccc_gain_V_per_mm")
+    fig.suptitle(
+        "CEE-MFAC ellipse against feed speed (last revolution"
+        + (f", K_p = {gain:g} V/mm)" if gain is not None else ")")
+    )
+    fig.savefig(path, dpi=120)
+    return path

@@ -5,6 +5,15 @@ prints as JSON and ``primlib.plot`` draws; where an honest reproduction disagree
 paper, the study's module docstring says so and why.
 """
 
+from primlib.reproduce._cee_mfac import PAPER_TABLE2 as CEE_PAPER
+from primlib.reproduce._cee_mfac import SWEEP_SPEEDS as CEE_SWEEP_SPEEDS
+from primlib.reproduce._cee_mfac import (
+    CEEStudy,
+    CEESweep,
+    cee_mfac_study,
+    cee_mfac_sweep,
+    linear_motor,
+)
 from primlib.reproduce._pdccilc import PAPER as PDCCILC_PAPER
 from primlib.reproduce._pdccilc import (
     PdccilcStudy,
@@ -13,4 +22,17 @@ from primlib.reproduce._pdccilc import (
     pdccilc_study,
 )
 
-__all__ = ["PDCCILC_PAPER", "PdccilcStudy", "contour_reference", "paper_machine", "pdccilc_study"]
+__all__ = [
+    "CEE_PAPER",
+    "CEE_SWEEP_SPEEDS",
+    "CEEStudy",
+    "CEESweep",
+    "cee_mfac_study",
+    "cee_mfac_sweep",
+    "linear_motor",
+    "PDCCILC_PAPER",
+    "PdccilcStudy",
+    "contour_reference",
+    "paper_machine",
+    "pdccilc_study",
+]
