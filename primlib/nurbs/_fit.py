@@ -1,12 +1,13 @@
 """Least-squares fit of uniformly timed samples to a clamped B-spline in normalised time.
 
 Samples P_i at v_i = i / (n - 1) are fitted with m control points on clamped uniform knots by
-equality-constrained linear least squares: the first and last control points are the end
-samples (the curve starts and ends exactly on the path) and, at an end where the samples are
-at rest, the next control point equals the end point too (C'(v) = 0 there), so the curve
-cannot start by running backwards, a cusp the samples do not have. The fixed control points
-are eliminated; the normal equations B_f^T B_f c_f = B_f^T (P - B_x c_x) of the free ones are
-banded (bandwidth p) and solved by a banded Cholesky factorisation. The count m is searched: the
+linear least squares; the normal equations B^T B c = B^T P are banded (bandwidth p) and solved
+by a banded Cholesky factorisation, and the first and last control points are set to the end
+samples, so the curve starts and ends exactly on the path. At an end where the samples are at
+rest the fit is equality-constrained instead: the end control point and its neighbour both
+equal the end sample (C'(v) = 0 there), so the curve cannot start by running backwards, a
+cusp the samples do not have; the fixed control points are eliminated and the banded normal
+equations B_f^T B_f c_f = B_f^T (P - B_x c_x) of the free ones are solved. The count m is searched: the
 error of a degree-p fit scales like h^(p+1) with the knot spacing h, which predicts the next
 count; a bracket [failing, passing] with bisection guarantees termination. When no count
 below n reaches the tolerance, the curve interpolates the samples (m = n).
@@ -112,12 +113,16 @@ def lsq_fit(
     ctrl = np.zeros((m, points.shape[1]))
     for j, value in fixed.items():
         ctrl[j] = value
-    a, b = (2 if rest[0] else 1), m - (2 if rest[1] else 1)  # free control points a .. b-1
+    # free control points a .. b-1; with both ends moving, the plain solve of all m and the
+    # end points set afterwards (cheaper, and what fits were before the rest constraint)
+    a, b = (2, m - 2) if all(rest) else (2, m - 1) if rest[0] else (1, m - 2) if rest[1] else (0, m)
     if b > a:
         solved = _solve_free(span - p, basis, points, ctrl, a, b)
         if solved is None:
             return None
         ctrl[a:b] = solved
+    for j, value in fixed.items():
+        ctrl[j] = value
     error = _deviation(span, basis, ctrl, points)
     if not math.isfinite(error):
         return None
@@ -129,11 +134,13 @@ def _solve_free(first, basis, points, ctrl, a: int, b: int) -> np.ndarray | None
     p = basis.shape[1] - 1
     m = ctrl.shape[0]
     # residual of the fixed control points: P - B_x c_x (they sit at the ends only)
-    rows = np.flatnonzero((first < a) | (first + p >= b))  # samples in the end spans
-    idx = first[rows, None] + np.arange(p + 1)
-    held = np.where((idx < a) | (idx >= b), basis[rows], 0.0)
-    target = points.copy()
-    target[rows] -= np.einsum("ij,ijk->ik", held, ctrl[idx])
+    target = points
+    if a > 0 or b < m:
+        rows = np.flatnonzero((first < a) | (first + p >= b))  # samples in the end spans
+        idx = first[rows, None] + np.arange(p + 1)
+        held = np.where((idx < a) | (idx >= b), basis[rows], 0.0)
+        target = points.copy()
+        target[rows] -= np.einsum("ij,ijk->ik", held, ctrl[idx])
     # normal matrix of all m in upper banded storage: ab[p + i - j, j] = (B^T B)[i, j], i <= j
     ab = np.zeros((p + 1, m))
     for r in range(p + 1):
@@ -145,6 +152,8 @@ def _solve_free(first, basis, points, ctrl, a: int, b: int) -> np.ndarray | None
             np.bincount(first + r, basis[:, r] * target[:, k], minlength=m) for r in range(p + 1)
         )
     try:
+        if a == 0 and b == m:
+            return solveh_banded(ab, rhs, check_finite=False)
         return solveh_banded(ab[:, a:b], rhs[a:b], check_finite=False)
     except (LinAlgError, ValueError):
         return None
