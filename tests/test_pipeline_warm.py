@@ -181,7 +181,7 @@ def test_warm_start_adds_no_chatter_beyond_the_stored_inputs(xyz):
     # the correction adds no chatter: near-Nyquist input content no more than the stored
     # inputs' own (the machine's exact inverses start with a kick its lag needs)
     lib, traj, _, items = _different_machine_case(xyz)
-    warm = warm_start(lib, traj, "xyz", 0.005, refine=False)
+    warm = lib.warm_start(traj, "xyz", 0.005, refine=False)
     stored = max(float(_hf(u).max()) for _, u, _, _ in items)
     assert float(_hf(warm.u).max()) <= stored
 

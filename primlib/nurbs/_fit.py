@@ -7,10 +7,10 @@ samples, so the curve starts and ends exactly on the path. At an end where the s
 rest the fit is equality-constrained instead: the end control point and its neighbour both
 equal the end sample (C'(v) = 0 there), so the curve cannot start by running backwards, a
 cusp the samples do not have; the fixed control points are eliminated and the banded normal
-equations B_f^T B_f c_f = B_f^T (P - B_x c_x) of the free ones are solved. The count m is searched: the
-error of a degree-p fit scales like h^(p+1) with the knot spacing h, which predicts the next
-count; a bracket [failing, passing] with bisection guarantees termination. When no count
-below n reaches the tolerance, the curve interpolates the samples (m = n).
+equations B_f^T B_f c_f = B_f^T (P - B_x c_x) of the free ones are solved. The count m is
+searched: the error of a degree-p fit scales like h^(p+1) with the knot spacing h, which
+predicts the next count; a bracket [failing, passing] with bisection guarantees termination.
+When no count below n reaches the tolerance, the curve interpolates the samples (m = n).
 """
 
 from __future__ import annotations
