@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from primlib.match import Match, Segment
+from primlib.pipeline import WarmStart
 from primlib.plot._match import match_figure
 from primlib.plot._warm import warm_start_figure
-from primlib.splice import Band, WarmStart
+from primlib.splice import Band
 
 DT = 0.001
 
