@@ -5,7 +5,7 @@ time scale (``primlib.match``); the primitives' converged ILC inputs are carried
 spliced into a first-iteration input (``primlib.splice``); ILC (``primlib.ilc``) starts from
 it on a machine model (``primlib.plant``), and what it learns is stored back
 (``primlib.store``). ``primlib.pipeline`` owns that loop; ``pl.Library`` is its library (the
-store plus ``match``, ``warm_start`` and ``learn``). See ``API.md`` for the public interface.
+store plus ``match``, ``warm_start`` and ``learn``). See ``docs/api.rst`` for the public interface.
 
 Top-level names are imported lazily, so ``import primlib`` stays cheap (no DuckDB, no
 matplotlib until used).

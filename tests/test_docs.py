@@ -69,3 +69,28 @@ def test_every_public_name_has_a_docstring():
             if (inspect.isclass(obj) or inspect.isfunction(obj)) and not inspect.getdoc(obj):
                 missing.append(f"{modname}.{name}")
     assert missing == [], f"public names without a docstring: {missing}"
+
+
+def test_reference_pages_are_current():
+    # a new command, option or public name changes them: python scripts/build_docs.py
+    assert build_docs.stale_pages() == []
+
+
+def test_every_command_is_in_the_command_tour():
+    import click
+
+    from primlib.cli import main
+
+    text = (DOCS / "cli.rst").read_text(encoding="utf-8")
+    missing = []
+    for full, cmd in build_docs._commands(main, "primlib"):
+        if full != "primlib" and not isinstance(cmd, click.Group) and full not in text:
+            missing.append(full)
+    assert missing == [], f"docs/cli.rst does not describe {missing}"
+
+
+def test_nothing_cites_a_document_outside_the_repository():
+    # the interface used to live in ../shared/API.md; it is docs/ now
+    files = [ROOT / "README.md", *ROOT.glob("primlib/**/*.py"), *DOCS.glob("*.rst")]
+    citing = [str(f.relative_to(ROOT)) for f in files if "API.md" in f.read_text("utf-8")]
+    assert citing == []

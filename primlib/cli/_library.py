@@ -121,7 +121,7 @@ def machine() -> None:
 @click.option("--replace", is_flag=True, help="Overwrite a different machine of the same name.")
 @click.pass_context
 def machine_add(ctx: click.Context, file: str, replace: bool) -> None:
-    """Add the machine described by FILE (machine JSON, see API.md) to the library.
+    """Add the machine described by FILE (machine JSON, see docs/files.rst) to the library.
 
     Creates the library file if there is none. Adding an identical machine again changes
     nothing; a different one of the same name needs --replace (refused while it has

@@ -1,4 +1,4 @@
-"""Machine JSON files (format in API.md): the file and its JSON, nothing about machines.
+"""Machine JSON files (format in docs/files.rst): the file and its JSON, nothing about machines.
 
 :meth:`primlib.plant.Machine.from_json` reads the dictionary here and builds the machine
 from it, so ``io`` never imports ``plant`` (one direction: plant -> io).

@@ -1,7 +1,7 @@
 """Signal CSV files: header ``t,ux,uy`` or ``t,ux,uy,uz``, on the time grid of their path.
 
 A signal is a feedforward input, one column per axis, sampled at t = 0, dt, ..., T: the
-same grid as the path it was learned for (API.md). These functions read and write that
+same grid as the path it was learned for (docs/api.rst). These functions read and write that
 format on top of :func:`primlib.io._csv.read_uniform_table`, which checks the header, the
 numbers and the time grid; :func:`read_signal_csv` can also check the grid against the
 path's.

@@ -355,7 +355,7 @@ class Machine:
     # --------------------------------------------------------------------- (de)serialise
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> Machine:
-        """Build a machine from its JSON dictionary (see API.md).
+        """Build a machine from its JSON dictionary (format in docs/files.rst).
 
         Dispatches on ``d.get("kind", "lti")`` to the class registered with
         :func:`register_kind`.
@@ -414,7 +414,7 @@ class Machine:
             raise InputError(f"{path}: {exc}") from None
 
     def to_json(self, path: str | os.PathLike) -> None:
-        """Write ``to_dict()`` as indented JSON, atomically (the format of API.md)."""
+        """Write ``to_dict()`` as indented JSON, atomically (the format of docs/files.rst)."""
         write_machine_json(path, self.to_dict())
 
     # --------------------------------------------------------------------- dunder

@@ -14,7 +14,7 @@ Layout (version 4):
 ``migrations(version, description, applied)``
     One row per applied step.
 ``machines(name, kind, dt, axes, definition, added)``
-    ``definition`` is the machine's JSON (API.md format), from which
+    ``definition`` is the machine's JSON (docs/files.rst format), from which
     :meth:`primlib.plant.Machine.from_dict` rebuilds it.
 ``primitives(id, machine, name, source, added, duration, dt, dim, n_samples, degree, knots,
 ctrlpts, weights, points, signal)``
