@@ -17,6 +17,7 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.cli import main
+from primlib.defaults import TIME_SCALE
 
 __all__ = ["match"]
 
@@ -76,7 +77,7 @@ def _table(mt, duration: float) -> str:
     "--time-scale",
     nargs=2,
     type=float,
-    default=(0.25, 4.0),
+    default=TIME_SCALE,
     show_default=True,
     help="Allowed stored duration / segment duration (low high).",
 )
@@ -161,14 +162,7 @@ def match(
 
         write_signal_csv(out_file, ws.t, ws.u)
     if as_json:
-        d = mt.to_dict()
-        d["path"] = str(path_csv)
-        d["duration"] = float(traj.duration)
-        if out_file is not None:
-            d["out"] = str(out_file)
-        if plot_file is not None:
-            d["plot"] = str(plot_file)
-        click.echo(json.dumps(d, indent=2))
+        click.echo(_as_json(mt, path_csv, traj.duration, out_file, plot_file))
         return
     info = mt.info
     click.echo(
@@ -181,3 +175,15 @@ def match(
         click.echo(f"warm-start input written to {out_file}")
     if plot_file is not None:
         click.echo(f"figure written to {plot_file}")
+
+
+def _as_json(mt, path_csv: Path, duration: float, out_file, plot_file) -> str:
+    """``match --json``: the Match's fields, the path, and the files written."""
+    d = mt.to_dict()
+    d["path"] = str(path_csv)
+    d["duration"] = float(duration)
+    if out_file is not None:
+        d["out"] = str(out_file)
+    if plot_file is not None:
+        d["plot"] = str(plot_file)
+    return json.dumps(d, indent=2)

@@ -204,18 +204,7 @@ class WarmStarter:
             inverse_machine=m,
             correction=correction,
         )
-        return WarmStart(
-            u=res.u,
-            t=np.arange(pts.shape[0]) * m.dt,
-            match=match,
-            bands=res.bands,
-            sample_segment=res.sample_segment,
-            sources=res.sources,
-            methods=res.methods,
-            notes=res.notes if model is None else (*res.notes, _refined_note(m, model)),
-            model=model,
-            spliced=res.spliced,
-        )
+        return _warm_start_result(res, m, match, model)
 
     # ------------------------------------------------------------------ learn
     def learn(
@@ -282,3 +271,19 @@ class WarmStarter:
         crms = None if res.rms_contour is None else [float(x) for x in res.rms_contour]
         t = np.arange(pts.shape[0]) * m.dt
         return LearnRun(m, ref, t, ws, res, crms, tuple(notes))
+
+
+def _warm_start_result(res, m: Machine, match: Match, model) -> WarmStart:
+    """The WarmStart of a splice result ``res`` on machine ``m`` (``model``: refined or None)."""
+    return WarmStart(
+        u=res.u,
+        t=np.arange(res.u.shape[0]) * m.dt,
+        match=match,
+        bands=res.bands,
+        sample_segment=res.sample_segment,
+        sources=res.sources,
+        methods=res.methods,
+        notes=res.notes if model is None else (*res.notes, _refined_note(m, model)),
+        model=model,
+        spliced=res.spliced,
+    )
