@@ -211,6 +211,8 @@ def test_ctrl_c_during_ingest_leaves_nothing_or_everything_and_says_which(
         assert f"Interrupted: nothing was added to {db}" in err
         assert "added" not in out
     else:
-        assert proc.returncode == 0, (out, err)
+        # 0: the write finished and said so; -SIGINT: on a fast machine the interrupt came
+        # after the command had finished and reported (the interpreter then dies of it)
+        assert proc.returncode in (0, -signal.SIGINT), (out, err)
         assert stored == len(many)
         assert f"added {len(many)} primitives" in out
