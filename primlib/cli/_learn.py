@@ -18,6 +18,7 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.cli import main
+from primlib.cli._library import _open_waiting
 from primlib.cli._output import FIGURE_FORMATS, check_output
 from primlib.pipeline import LAWS
 
@@ -28,6 +29,9 @@ if TYPE_CHECKING:
 # list` do not load scipy, the matcher and the learners.
 
 __all__ = ["learn", "example"]
+
+# How long `learn --ingest` waits for readers to let go of the file before it stores (s).
+STORE_WAIT = 30.0
 
 
 def _check_options(eps: float | None, tol: float | None, band: float | None) -> None:
@@ -168,7 +172,7 @@ def learn(
     """
     from primlib.nurbs import read_path
     from primlib.pipeline import Library, check_law, store_learned
-    from primlib.store import Store, check_name
+    from primlib.store import check_name
 
     _check_options(eps, tol, band)
     if not path.is_file():
@@ -190,7 +194,9 @@ def learn(
             cold_run = lib.starter.learn(trajectory, machine_name, cold=True, contour=False, **opts)
     new_id = None
     if ingest:
-        with Store(db, create=False) as store:
+        # Readers open the file for moments; after a learning run that may have taken minutes,
+        # wait for them rather than throw the result away.
+        with _open_waiting(db, STORE_WAIT, create=False) as store:
             new_id = store_learned(
                 store,
                 run,
