@@ -17,7 +17,7 @@ export PRIMLIB_DB=$PWD/stage.duckdb
 rm -f "$PRIMLIB_DB" "$PRIMLIB_DB.wal"
 
 # 1. identify the stage from one experiment (it starts at rest at x = 100, y = 100 mm)
-$PRIMLIB machine excite --duration 8 --amplitude 0.5 --axes 2 --dt 0.002 --band 2 50 --out excite.csv
+$PRIMLIB machine excite --duration 8 --amplitude 2 --axes 2 --dt 0.002 --out excite.csv
 $STAGE --start 100,100 excite.csv record.csv
 $PRIMLIB machine identify --input excite.csv --output record.csv --name stage --out stage-id.json
 $PRIMLIB machine add stage-id.json
