@@ -5,11 +5,13 @@ Each study registers a subcommand on :data:`reproduce` from its own module.
 
 from __future__ import annotations
 
+import json
+
 import click
 
 from primlib.cli import main
 
-__all__ = ["reproduce", "study_options"]
+__all__ = ["reproduce", "study_options", "figures_and_json"]
 
 
 @main.group()
@@ -34,3 +36,18 @@ def study_options(figures: str):
         )(command)
 
     return decorate
+
+
+def figures_and_json(study, plot: str, plot_dir, as_json: bool) -> bool:
+    """What every study does with its result before its own table: with ``--plot``, the
+    figures by ``primlib.plot``'s function named ``plot`` (imported only then: matplotlib is
+    slow to load), their names on stderr; with ``--json``, ``study.to_json()`` printed.
+    Returns True when the JSON was printed (then no table)."""
+    if plot_dir is not None:
+        import primlib.plot
+
+        for path in getattr(primlib.plot, plot)(study, plot_dir):
+            click.echo(f"wrote {path}", err=True)
+    if as_json:
+        click.echo(json.dumps(study.to_json()))
+    return as_json

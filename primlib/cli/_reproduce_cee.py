@@ -3,14 +3,13 @@
 
 from __future__ import annotations
 
-import json
 import math
 
 import click
 
 from primlib._errors import InputError
 from primlib.cli._progress import stderr_progress
-from primlib.cli._reproduce import reproduce, study_options
+from primlib.cli._reproduce import figures_and_json, reproduce, study_options
 
 __all__ = ["cee_mfac"]
 
@@ -84,13 +83,7 @@ def cee_mfac(as_json, plot_dir, duration, ccc_gain, sweep, speeds, revolutions):
         ccc_gain=ccc_gain,
         progress=stderr_progress("cee-mfac cases"),
     )
-    if plot_dir is not None:
-        from primlib.plot import plot_cee
-
-        for path in plot_cee(study, plot_dir):
-            click.echo(f"wrote {path}", err=True)
-    if as_json:
-        click.echo(json.dumps(study.to_json()))
+    if figures_and_json(study, "plot_cee", plot_dir, as_json):
         return
     click.echo(
         f"{'case':<6}{'e_max µm':>10}{'e_mad µm':>10}{'paper e_max':>13}{'paper e_mad':>13}"
@@ -113,13 +106,7 @@ def _sweep(as_json, plot_dir, ccc_gain, speeds, revolutions):
         ccc_gain=ccc_gain,
         progress=stderr_progress("cee-mfac sweep runs (speed x estimator)"),
     )
-    if plot_dir is not None:
-        from primlib.plot import plot_cee
-
-        for path in plot_cee(sw, plot_dir):
-            click.echo(f"wrote {path}", err=True)
-    if as_json:
-        click.echo(json.dumps(sw.to_json()))
+    if figures_and_json(sw, "plot_cee", plot_dir, as_json):
         return
     names = ("linear", "circular", "exact")
     click.echo(

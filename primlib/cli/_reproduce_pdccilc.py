@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import json
-
 import click
 
 from primlib.cli._progress import stderr_progress
-from primlib.cli._reproduce import reproduce, study_options
+from primlib.cli._reproduce import figures_and_json, reproduce, study_options
 
 __all__ = ["pdccilc"]
 
@@ -54,13 +52,7 @@ def pdccilc(as_json, plot_dir, iterations, q_cutoff, no_q_filter, no_convergence
         convergence=not no_convergence,
         progress=stderr_progress("pdccilc cases (contour x law)"),
     )
-    if plot_dir is not None:
-        from primlib.plot import plot_pdccilc
-
-        for path in plot_pdccilc(study, plot_dir):
-            click.echo(f"wrote {path}", err=True)
-    if as_json:
-        click.echo(json.dumps(study.to_json()))
+    if figures_and_json(study, "plot_pdccilc", plot_dir, as_json):
         return
     click.echo(
         f"{'contour':<11}{'law':<9}{'RMS0 µm':>9}{'RMS µm':>9}{'reduct.':>9}"
