@@ -167,6 +167,32 @@ def test_primitive_add_as_points_and_as_csv_then_show_signal_remove(world):
     assert [r["name"] for r in listed][:2] == ["line-x-fast", "arc-quarter"]
 
 
+def test_an_identical_primitive_is_kept_once_and_answered_200_with_its_id(world):
+    s = world["server"]
+    t, p, u = stored("line-x-slow")
+    body = {"machine": "xyz", "path": p.tolist(), "signal": u.tolist(), "name": "once"}
+    status, first, _ = s.call("POST", "/primitives", body)
+    assert status == 201 and first["created"] is True and "note" not in first
+    before = _count(s)
+    # the same content again (another name, and as CSV): nothing new, the existing id
+    again = {**body, "name": "twice", "path": _csv("t,x,y,z", t, p)}
+    status, second, _ = s.call("POST", "/primitives", again)
+    assert status == 200 and second["created"] is False and second["id"] == first["id"]
+    assert second["name"] == "once"  # the stored row, unchanged
+    assert second["note"] == (
+        f"an identical primitive (same machine, path and signal) is stored already as id "
+        f"{first['id']}; nothing was written"
+    )
+    assert _count(s) == before
+    c = Client(s.url)  # the client returns the id either way, as Library.add does
+    assert c.add(Trajectory.from_samples(p, 0.005), u, machine="xyz") == first["id"]
+    assert _count(s) == before
+    status, nudged, _ = s.call("POST", "/primitives", {**body, "signal": (u * 1.001).tolist()})
+    assert status == 201 and nudged["created"] is True and nudged["id"] != first["id"]
+    for pid in (first["id"], nudged["id"]):
+        assert s.call("DELETE", f"/primitives/{pid}")[0] == 200
+
+
 def _refused(s: Server, method: str, path: str, body, **kw) -> tuple[int, str]:
     before = _count(s)
     status, answer, _ = s.call(method, path, body, **kw)

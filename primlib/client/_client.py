@@ -263,7 +263,9 @@ class Client:
     def add(
         self, path: Any, u: Any, machine: str, name: str | None = None, source: str | None = None
     ) -> int:
-        """Store one primitive; its new id. The server checks it as :meth:`Library.add`."""
+        """Store one primitive; its id (as :meth:`Library.add`: the new one, or the id of the
+        identical primitive the machine already holds, then nothing is written). The server
+        checks it as :meth:`Library.add` does."""
         u = np.asarray(u, dtype=float)
         if not np.isfinite(u).all():
             raise InputError("signal: expected finite numbers, got NaN or inf")

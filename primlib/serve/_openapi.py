@@ -62,7 +62,7 @@ def _body(props: dict[str, Any], required: list[str], csv: bool = False) -> dict
     return {"required": True, "content": content}
 
 
-# (method, path) -> (summary, request body or None, success status)
+# (method, path) -> (summary, request body or None, success statuses, comma-separated)
 DESCRIPTIONS: dict[tuple[str, str], tuple[str, dict[str, Any] | None, str]] = {
     ("GET", "/health"): ("Liveness (no token needed); 503 while shutting down.", None, "200"),
     ("GET", "/version"): ("primlib version and the library's schema version.", None, "200"),
@@ -78,7 +78,9 @@ DESCRIPTIONS: dict[tuple[str, str], tuple[str, dict[str, Any] | None, str]] = {
     ("GET", "/machines/{name}"): ("One machine with its definition.", None, "200"),
     ("GET", "/primitives"): ("Primitives' metadata (?machine=NAME).", None, "200"),
     ("POST", "/primitives"): (
-        "Store a path with its learned input.",
+        "Store a path with its learned input: 201 with the new id; 200 with the id of the "
+        "identical primitive (same machine, path and signal) already stored, nothing written "
+        '("created": false).',
         _body(
             {
                 "machine": {"type": "string"},
@@ -90,7 +92,7 @@ DESCRIPTIONS: dict[tuple[str, str], tuple[str, dict[str, Any] | None, str]] = {
             },
             ["machine", "path", "signal"],
         ),
-        "201",
+        "201,200",
     ),
     ("GET", "/primitives/{id}"): (
         "One primitive: metadata, NURBS, signal size (?arrays=true adds points, signal).",
@@ -135,7 +137,7 @@ def schema() -> dict[str, Any]:
         op: dict[str, Any] = {
             "summary": summary,
             "responses": {
-                ok: {"description": "done"},
+                **{code: {"description": "done"} for code in ok.split(",")},
                 **{c: _ERROR for c in ("400", "401", "403", "404", "409", "413", "422")},
             },
         }

@@ -183,14 +183,23 @@ async def primitive_add(request: Request) -> Response:
     name, source = optional_str(body, "name"), optional_str(body, "source")
     machine_name = optional_str(body, "machine")
 
-    def add(lib: Any) -> dict[str, Any]:
+    def add(lib: Any) -> tuple[dict[str, Any], bool]:
         # all in the writer thread: an ingest never queues behind the readers' warm starts
         machine = lib.machine(machine_name)
         traj, t = path_of(body, machine)
         u = signal_of(body, machine, t)
-        return lib.info(lib.add(traj, u, machine=machine_name, name=name, source=source)).to_dict()
+        done = lib.add_batch([(traj, u, name, source)], machine_name, single=True)
+        return lib.info(done.ids[0]).to_dict(), not done.duplicates
 
-    return json_response(await _service(request).write(add), 201)
+    info, created = await _service(request).write(add)
+    if created:
+        return json_response({**info, "created": True}, 201)
+    # the library keeps one copy of identical content (same machine, path and signal)
+    note = (
+        f"an identical primitive (same machine, path and signal) is stored already as id "
+        f"{info['id']}; nothing was written"
+    )
+    return json_response({**info, "created": False, "note": note}, 200)
 
 
 async def primitive_remove(request: Request) -> Response:
