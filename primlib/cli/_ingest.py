@@ -19,13 +19,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
-import numpy as np
 
 from primlib._errors import InputError
 from primlib.cli import main
 from primlib.cli._library import _db, _open_library, _open_waiting
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from primlib.nurbs import Trajectory
     from primlib.plant import Machine
     from primlib.store import AddResult

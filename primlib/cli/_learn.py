@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
-import numpy as np
 
 from primlib._errors import InputError
 from primlib.cli import main
@@ -49,6 +48,8 @@ def _segment_lines(sources: tuple[str, ...]) -> list[str]:
 
 
 def _as_json(path: Path, machine_name: str, run: LearnRun, cold: LearnRun | None, new_id) -> str:
+    import numpy as np
+
     res = run.result
     rms, crms = np.asarray(res.rms_total), run.contour
     return json.dumps(
@@ -76,6 +77,8 @@ def _as_json(path: Path, machine_name: str, run: LearnRun, cold: LearnRun | None
 
 def _as_text(run: LearnRun) -> list[str]:
     """The warm start's segments and the RMS per trial; row 0 is labelled as the start."""
+    import numpy as np
+
     lines = []
     if run.warm is not None:
         lines.append(f"warm start from {len(run.warm.match.segments)} segment(s):")
@@ -97,6 +100,8 @@ def _as_text(run: LearnRun) -> list[str]:
 
 
 def _plot(plot_file: Path, trajectory, run: LearnRun, cold: LearnRun | None) -> None:
+    import numpy as np
+
     from primlib.plot import plot_warm_start
 
     plot_warm_start(

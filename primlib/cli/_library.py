@@ -13,7 +13,6 @@ import time
 from typing import TYPE_CHECKING, Any
 
 import click
-import numpy as np
 
 from primlib._errors import LibraryBusyError
 from primlib.cli import main
@@ -232,6 +231,8 @@ def show(
     ctx: click.Context, id: int, as_json: bool, signal_out: str | None, path_out: str | None
 ) -> None:
     """Show one primitive: metadata, its NURBS and its signal's size per axis."""
+    import numpy as np
+
     check_output("--signal-out", signal_out, TABLE_FORMATS)
     check_output("--path-out", path_out, TABLE_FORMATS)
     with _open(ctx, read_only=True, remote=True) as lib:

@@ -11,13 +11,16 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
-import numpy as np
 
 from primlib._errors import InputError
 from primlib.cli._library import machine
 from primlib.cli._output import FIGURE_FORMATS, check_output
+
+if TYPE_CHECKING:  # numpy is imported where a command runs: `--help` stays fast
+    import numpy as np
 
 __all__ = ["machine_identify", "machine_excite"]
 
@@ -57,6 +60,8 @@ def _parse_pid(values: tuple[str, ...], axes: tuple[str, ...]) -> dict | None:
 
 
 def _same_grid(t_ref: np.ndarray, t: np.ndarray, ref_name: str, name: str) -> None:
+    import numpy as np
+
     dt_ref = t_ref[1] - t_ref[0]
     if len(t) != len(t_ref):
         raise InputError(
@@ -205,6 +210,8 @@ def machine_identify(
     primlib machine identify --input u.csv --output y.csv --name stage --out stage.json
     primlib machine add stage.json
     """
+    import numpy as np
+
     from primlib.identify import HOLDOUT, identify
 
     inputs = [input_file, output_file, reference_file]
@@ -310,6 +317,8 @@ def machine_excite(
 ) -> None:
     """Write an excitation input for an identification experiment (signal CSV), within
     the amplitude and the rate or predicted-velocity limits."""
+    import numpy as np
+
     from primlib.identify import PERIODS, excite
     from primlib.io import write_signal_csv
     from primlib.plant import Machine

@@ -13,7 +13,6 @@ import json
 from pathlib import Path
 
 import click
-import numpy as np
 
 from primlib._errors import InputError
 from primlib.cli import main
@@ -27,6 +26,8 @@ def _interval(a: float, b: float) -> str:
 
 
 def _table(mt, duration: float) -> str:
+    import numpy as np
+
     headers = ["seg", "path v", "path t [s]", "primitive", "primitive v", "angle", "k", "rmsd"]
     rows = []
     for j, s in enumerate(mt.segments, 1):
@@ -117,6 +118,8 @@ def match(
     primlib match new_path.csv -m xyz --eps 0.05
     primlib match new_path.csv --machine xyz --json --plot match.png --out u0.csv
     """
+    import numpy as np
+
     from primlib.cli._library import _db, _open_library
     from primlib.cli._output import FIGURE_FORMATS, TABLE_FORMATS, check_output
     from primlib.match import default_eps

@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
-import numpy as np
 
 from primlib._errors import InputError
 from primlib.cli import main
 from primlib.cli._output import TABLE_FORMATS, check_output
+
+if TYPE_CHECKING:  # numpy is imported where a command runs: `--help` stays fast
+    import numpy as np
 
 __all__ = ["trials"]
 

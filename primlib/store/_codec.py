@@ -8,12 +8,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pyarrow as pa
 
 from primlib.store._types import Bank, PrimitiveInfo
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 __all__ = [
     "INFO_COLUMNS",
@@ -54,6 +56,8 @@ def list_array(flat_values: np.ndarray, offsets: np.ndarray) -> pa.Array:
     32-bit offsets while they fit (DuckDB reads a ``ListArray`` a little faster than a
     ``LargeListArray``), 64-bit beyond 2**31 values.
     """
+    import pyarrow as pa  # Arrow is loaded on writes and bulk reads only
+
     if offsets[-1] < 2**31:
         return pa.ListArray.from_arrays(pa.array(offsets.astype(np.int32)), pa.array(flat_values))
     return pa.LargeListArray.from_arrays(pa.array(offsets), pa.array(flat_values))
@@ -109,6 +113,8 @@ def batch_table(
     ``checked`` are the validated items (``validate.check_item``), ``points`` every item's
     path on the machine grid as one flat buffer with ``sample_offsets`` (in values).
     """
+    import pyarrow as pa  # Arrow is loaded on writes and bulk reads only
+
     k = len(checked)
     m = np.array([len(c["weights"]) for c in checked], dtype=np.int64)
     nk = np.array([len(c["knots"]) for c in checked], dtype=np.int64)
@@ -146,6 +152,8 @@ def in_id_order(table: pa.Table) -> tuple[pa.Table, np.ndarray]:
     A scan returns rows in insertion (= id) order, so the sort is skipped then (sorting
     moves every list: it cost 4x the scan here); the rare other case costs one take.
     """
+    import pyarrow as pa  # Arrow is loaded on writes and bulk reads only
+
     ids = table.column("id").to_numpy().astype(np.int64)
     if np.any(np.diff(ids) <= 0):
         order = np.argsort(ids, kind="stable")

@@ -46,14 +46,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from datetime import UTC, datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import duckdb
 import numpy as np
-import pyarrow as pa
 
 from primlib.store._codec import flat
 from primlib.store._validate import content_hash
+
+if TYPE_CHECKING:
+    pass
 
 __all__ = ["APPLICATION", "MIGRATIONS", "SCHEMA_VERSION", "Migration", "migrate", "utcnow"]
 
@@ -64,6 +66,8 @@ Migration = tuple[int, str, "str | Callable[[Any], None]"]
 
 def _add_content_hash(con: duckdb.DuckDBPyConnection) -> None:
     """Version 3: the ``content_hash`` column, computed for the rows already stored."""
+    import pyarrow as pa  # Arrow is loaded by this migration only
+
     con.execute("ALTER TABLE primitives ADD COLUMN content_hash VARCHAR")
     table = con.sql("SELECT id, machine, dim, points, signal FROM primitives").to_arrow_table()
     if table.num_rows == 0:

@@ -13,21 +13,22 @@ import json
 import os
 from collections.abc import Callable, Mapping, Sequence
 from datetime import UTC, datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import duckdb
 import numpy as np
-import pyarrow as pa
 
 from primlib._errors import InputError, NotFoundError
-from primlib.nurbs import Trajectory
-from primlib.plant import Machine
 from primlib.store import _machines
 from primlib.store._codec import INFO_COLUMNS, bank_from_table, flat, info_from_row
 from primlib.store._connection import check_schema, connect, reading, transaction
 from primlib.store._insert import insert
 from primlib.store._types import AddResult, Bank, Primitive, PrimitiveInfo
 from primlib.store._validate import check_id
+
+if TYPE_CHECKING:  # nurbs and plant load scipy: imported where a path or machine is rebuilt
+    from primlib.nurbs import Trajectory
+    from primlib.plant import Machine
 
 __all__ = ["Store"]
 
@@ -186,6 +187,8 @@ class Store:
         cached = self._machines_cache.get(name)
         if cached is not None and cached[0] == definition:
             return cached[1]
+        from primlib.plant import Machine
+
         machine = Machine.from_dict(json.loads(definition))
         self._machines_cache[name] = (definition, machine)
         return machine
@@ -215,6 +218,8 @@ class Store:
             replacement changes dt or axes of a machine with primitives.
         """
         if isinstance(machine, Mapping):
+            from primlib.plant import Machine
+
             machine = Machine.from_dict(machine)
         to_dict = getattr(machine, "to_dict", None)
         if not callable(to_dict):
@@ -421,6 +426,8 @@ class Store:
             raise self._not_found(id)
         info = info_from_row([table.column(c)[0].as_py() for c in INFO_COLUMNS.split(", ")])
         d = info.dim
+        from primlib.nurbs import Trajectory
+
         trajectory = Trajectory.from_definition(
             int(table.column("degree")[0].as_py()),
             flat(table.column("knots")),
@@ -536,6 +543,8 @@ class Store:
                     f"{self._label}: primitive {missing} was removed after this bank was "
                     "read; read the bank again"
                 )
+            import pyarrow as pa  # Arrow is loaded on bulk reads only
+
             table = table.take(pa.array(order[pos]))
         signals = flat(table.column("signal")).reshape(-1, d)
         signals.setflags(write=False)

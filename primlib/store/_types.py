@@ -5,11 +5,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from primlib.nurbs import Trajectory
+if TYPE_CHECKING:  # the NURBS code loads scipy: imported when a path is rebuilt
+    from primlib.nurbs import Trajectory
 
 __all__ = ["PrimitiveInfo", "Primitive", "Bank", "AddResult"]
 
@@ -227,6 +228,8 @@ class Bank:
 
     def trajectory(self, i: int) -> Trajectory:
         """The NURBS path of primitive i, a :class:`primlib.nurbs.Trajectory`."""
+        from primlib.nurbs import Trajectory
+
         c0, c1 = self.ctrl_offsets[i], self.ctrl_offsets[i + 1]
         return Trajectory.from_definition(
             int(self.degrees[i]),

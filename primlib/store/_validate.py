@@ -15,8 +15,6 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.defaults import MAX_ABS_VALUE, MIN_EXTENT_REL
-from primlib.nurbs import MIN_SAMPLES as MIN_ROWS
-from primlib.nurbs import Trajectory, sample_many
 
 __all__ = [
     "check_id",
@@ -93,6 +91,8 @@ def _grid(label: str, path: Any, machine: str, dt: float, axes: list[str]) -> in
             f"{machine!r} (dt = {dt:g} s), got T = {duration:.9g} s"
         )
     n = int(round(steps)) + 1
+    from primlib.nurbs import MIN_SAMPLES as MIN_ROWS  # nurbs loads scipy: only on writes
+
     if n < MIN_ROWS:
         raise InputError(
             f"{label}: expected at least {MIN_ROWS} samples on the grid of machine {machine!r} "
@@ -176,6 +176,8 @@ def sample_points(
     group of curves sharing degree, knots and sample count); other path objects through
     their own ``sample``. The samples are then checked (:func:`check_points`).
     """
+    from primlib.nurbs import Trajectory, sample_many  # scipy: loaded on writes only
+
     native = [i for i, c in enumerate(checked) if isinstance(c["path"], Trajectory)]
     if len(native) == len(checked):
         out = sample_many([c["path"] for c in checked], dt)[0].reshape(-1)
