@@ -6,12 +6,14 @@ inverse feedforward; ``toeplitz_operator`` / ``max_singular_value`` apply and me
 matrices through the FFT without forming them. Notation: see :mod:`primlib.plant._machine`.
 """
 
+from primlib.plant._departures import DEPARTURE_KEYS, scale_departures, typical_scales
 from primlib.plant._invert import invert
 from primlib.plant._lifted import max_singular_value, toeplitz_operator
 from primlib.plant._linear_motor import LinearMotor
 from primlib.plant._machine import Machine, machine_kinds, register_kind
 from primlib.plant._normal import CGInfo, NormalSolver
 from primlib.plant._pid import pid_polynomials
+from primlib.plant._realistic import RealisticMachine, TrialRunner
 from primlib.plant._spec import DT_RANGE
 
 __all__ = [
@@ -22,6 +24,11 @@ __all__ = [
     "toeplitz_operator",
     "max_singular_value",
     "LinearMotor",
+    "RealisticMachine",
+    "TrialRunner",
+    "DEPARTURE_KEYS",
+    "scale_departures",
+    "typical_scales",
     "NormalSolver",
     "CGInfo",
     "pid_polynomials",

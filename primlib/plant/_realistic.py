@@ -1,0 +1,581 @@
+"""A realistic machine: the per-axis linear model plus friction, ripple, noise, disturbance.
+
+Per axis, in the machine's input units (``G = num / den`` the axis's own plant, ``x_abs``
+the absolute motor position ``start + y_m``, ``v`` its velocity)::
+
+    y_m = G(s) [u + PID + d_j(t) - f(v) - c_r sin(2 pi x_abs / p + phi)]
+    f(v) = c_c [1 + (r_s - 1) exp(-(v / v_s)^2)] sgn(v) + c_v v     (Stribeck, Coulomb, viscous)
+    y   = R(s) y_m,   R(s) = w^2 / (s^2 + 2 zeta w s + w^2)           (optional resonance)
+    measured = y + n_j(t)
+
+``d_j`` is trial j's input disturbance (Gaussian, first-order low-pass: stationary std
+``disturbance``, corner ``disturbance_bandwidth``), ``n_j`` white measurement noise of std
+``noise``; both are drawn from ``numpy.random.default_rng((seed, j, stream))``, so a trial is
+reproducible and each trial differs. A PID, where there is one, acts on the measured
+output (noise included); the noise-free motion ``y`` is what :meth:`simulate` returns unless
+asked for the measurement. For a plant whose high-frequency gain is negative, ``f`` is
+applied with that sign, so that friction always opposes the motion.
+
+Where the resonance sits: between the driven carriage (where friction and cogging act and
+whose velocity they see) and the measured point, as a compliant coupling of unit static
+gain. So the friction acts on a rigid force-to-position part of relative degree >= 2, where
+the stick/slip step below is well defined, the mode is excited by every input (and by the
+friction's stick/slip, as a structural mode is), and static positioning is unchanged.
+
+Velocity and integration. Each loop axis is a continuous state space ``x' = A x + B w``
+(``scipy.signal.tf2ss`` of ``G``, then the resonance in series), ``y_m = C x``. With relative
+degree >= 2, ``C B = 0`` and the motor velocity is exactly ``v = C A x``. Viscous friction is
+linear velocity feedback, folded into ``A`` (``A - c_v B C A``), hence integrated exactly.
+A sample is cut into ``substeps``; in each, the force ``w`` (input, disturbance, ripple at
+the substep's start) is held and the state advanced by the exact zero-order hold
+``x+ = A_d x + B_d w`` (``scipy.linalg.expm``), so with Coulomb friction and ripple off the
+loop is the ZOH model up to rounding. Coulomb friction is a set-valued force in a
+Moreau-type time-stepping (as :mod:`primlib.plant._linear_motor`): with ``v_free`` the
+end-of-substep velocity without it, at rest or where the substep would reverse the motion
+the axis sticks (``v = 0``) if friction up to its static level ``r_s c_c`` absorbs the whole
+free motion, else it slides on; no chattering at ``v = 0`` and no stiff solver.
+
+Axes whose Coulomb friction and ripple are off are linear: they run, vectorised, through the
+linear :class:`~primlib.plant.Machine` ``G R / (1 + c_v s G)`` (:meth:`linear_part`), which
+with every departure off is the nominal machine itself, so the output is exactly
+:class:`Machine`'s. The others run a per-sample loop on plain floats.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+from scipy import linalg, signal
+
+from primlib._errors import InputError
+from primlib.plant._departures import (
+    check_count,
+    scale_departures,
+    validate_departures,
+)
+from primlib.plant._machine import Machine, register_kind
+from primlib.plant._spec import check_keys, read_note
+
+__all__ = ["RealisticMachine", "TrialRunner"]
+
+_TOP_KEYS = {
+    "name",
+    "kind",
+    "dt",
+    "axes",
+    "plants",
+    "feedback",
+    "note",
+    "departures",
+    "seed",
+    "substeps",
+}
+_DISTURBANCE, _NOISE = 1, 2  # random streams of a trial
+
+
+def _hf_sign(num: np.ndarray, den: np.ndarray) -> float:
+    """Sign of the high-frequency gain (leading coefficients' ratio)."""
+    return 1.0 if num[0] / den[0] > 0 else -1.0
+
+
+def _resonance(dep: Mapping[str, float]) -> tuple[float, float] | None:
+    hz = dep["resonance_hz"]
+    return None if hz == 0 else (2 * math.pi * hz, dep["resonance_damping"])
+
+
+def _linear_plant(num, den, dep) -> tuple[np.ndarray, np.ndarray]:
+    """``G R / (1 + c_v s G)``: the axis with its linear departures (unchanged without)."""
+    num, den = np.asarray(num, float), np.asarray(den, float)
+    if dep["viscous"] != 0:
+        s_num = np.concatenate([num, [0.0]]) * _hf_sign(num, den) * dep["viscous"]
+        den = np.polyadd(den, s_num)
+    res = _resonance(dep)
+    if res is not None:
+        w, zeta = res
+        num, den = num * w**2, np.polymul(den, [1.0, 2 * zeta * w, w**2])
+    return num, den
+
+
+def _loop_kernel(axis: str, num, den, dep, dt: float, substeps: int) -> tuple:
+    """Plain-float constants of one loop axis (module docstring), per substep."""
+    num, den = np.asarray(num, float), np.asarray(den, float)
+    if len(den) - len(num) < 2:
+        raise InputError(
+            f"departures of axis {axis!r}: Coulomb friction and ripple act as a force, "
+            f"expected a plant of relative degree >= 2, got {len(den) - len(num)}"
+        )
+    g = _hf_sign(num, den)
+    A, B, C, _ = signal.tf2ss(num, den)
+    B, C = B[:, 0], C[0]
+    A = A - g * dep["viscous"] * np.outer(B, C @ A)  # viscous friction: -c_v v at the input
+    m = len(B)
+    res = _resonance(dep)
+    Cp = np.concatenate([C, [0.0, 0.0]]) if res else C
+    Cv = Cp.copy()
+    Cv[:m] = C @ A
+    if res:
+        w, zeta = res
+        full = np.zeros((m + 2, m + 2))
+        full[:m, :m] = A
+        full[m, m + 1] = 1.0  # the mode's position and velocity follow the motor's position
+        full[m + 1, :m] = w**2 * C
+        full[m + 1, m:] = -(w**2), -2 * zeta * w
+        A = full
+        B = np.concatenate([B, [0.0, 0.0]])
+        Cy = np.zeros(m + 2)
+        Cy[m] = 1.0
+    else:
+        Cy = Cp
+    h = dt / substeps
+    k = len(B)
+    aug = np.zeros((k + 1, k + 1))
+    aug[:k, :k], aug[:k, k] = A * h, B * h
+    E = linalg.expm(aug)
+    Ad, Bd = E[:k, :k], E[:k, k]
+    vf = float(Cv @ Bd)
+    w0 = 2 * math.pi / dep["ripple_pitch"]
+    return (
+        tuple(tuple(float(a) for a in row) for row in Ad),
+        tuple(float(b) for b in Bd),
+        tuple(float(c) for c in Cp),
+        tuple(float(c) for c in Cv @ Ad),
+        vf,
+        tuple(float(c) for c in Cy),
+        (dep["coulomb"], dep["static_ratio"], dep["stribeck_velocity"]),
+        (dep["ripple"], w0, dep["ripple_phase"]),
+        substeps,
+        m,
+    )
+
+
+def _friction(v: float, v_free: float, vf: float, fr: tuple) -> tuple[float, float]:
+    """Coulomb/Stribeck friction of one substep (set-valued, Moreau-type): the force
+    (input units, ``v_new = v_free - vf * force``) and the end-of-substep velocity."""
+    coulomb, rs, vs = fr
+    if coulomb == 0.0:
+        return 0.0, v_free
+    gain = abs(vf)
+    static = rs * coulomb
+    if v != 0.0:
+        level = coulomb * (1.0 + (rs - 1.0) * math.exp(-((v / vs) ** 2)))
+        sigma = 1.0 if v > 0.0 else -1.0
+        v_try = v_free - gain * level * sigma
+        if v_try * sigma > 0.0:  # still moving the same way: kinetic friction
+            return (v_free - v_try) / vf, v_try
+    else:
+        level = static
+    # at rest, or the substep would reverse the motion: stick if friction up to the static
+    # level absorbs the whole free motion, else slide on
+    if abs(v_free) <= gain * static:
+        return v_free / vf, 0.0
+    v_new = v_free - gain * level * (1.0 if v_free > 0.0 else -1.0)
+    return (v_free - v_new) / vf, v_new
+
+
+def _run_axis(kern: tuple, u: list, r: list, noise: list, start: float, pid) -> list:
+    """One loop axis over all samples (plain floats): the noise-free output, relative."""
+    Ad, Bd, Cp, CvAd, vf, Cy, fr, (c_r, w0, phi), nsub, m = kern
+    x = [0.0] * len(Bd)
+    v = 0.0
+    kp, ki, kd, tf, dt = pid if pid is not None else (0.0,) * 5
+    integ = deriv = e_prev = 0.0
+    out = [0.0] * len(u)
+    for k in range(len(u)):
+        y = sum(c * xi for c, xi in zip(Cy, x, strict=True))
+        out[k] = y
+        cmd = u[k]
+        if pid is not None:
+            # backward-Euler PID on the measurement, as Machine's (primlib.plant._pid)
+            e = r[k] - (y + noise[k])
+            integ += ki * dt * e
+            deriv = (tf * deriv + kd * (e - e_prev)) / (tf + dt)
+            e_prev = e
+            cmd += kp * e + integ + deriv
+        for _ in range(nsub):
+            w = cmd
+            if c_r != 0.0:
+                w -= c_r * math.sin(
+                    w0 * (start + sum(c * xi for c, xi in zip(Cp, x, strict=True))) + phi
+                )
+            v_free = sum(c * xi for c, xi in zip(CvAd, x, strict=True)) + vf * w
+            fric, v_new = _friction(v, v_free, vf, fr)
+            w -= fric
+            x_new = [
+                sum(a * xi for a, xi in zip(row, x, strict=True)) + b * w
+                for row, b in zip(Ad, Bd, strict=True)
+            ]
+            if v == 0.0 and v_new == 0.0 and fric != 0.0:
+                # stuck through the substep: the carriage is at rest, exactly (rounding
+                # would otherwise let it creep by 1e-22 and flip the sign of v)
+                x_new[:m] = x[:m]
+            x, v = x_new, v_new
+    return out
+
+
+class RealisticMachine(Machine):
+    """A Machine with friction, force ripple, noise, a disturbance and a resonance.
+
+    Parameters
+    ----------
+    name, dt, axes, plants, feedback
+        As :class:`Machine`: the nominal linear model (``plants`` in input units to the
+        user's length unit), optionally in its PID loops.
+    departures : dict, optional
+        Per axis (all or some) the departures of
+        :data:`primlib.plant.DEPARTURE_KEYS` (module docstring of
+        :mod:`primlib.plant._realistic` for the model): ``coulomb``, ``static_ratio`` (1),
+        ``stribeck_velocity`` (1), ``viscous``, ``ripple``, ``ripple_pitch`` (5),
+        ``ripple_phase`` (0 rad), ``disturbance``, ``disturbance_bandwidth`` (2 Hz),
+        ``noise``, ``resonance_hz`` (0: none), ``resonance_damping`` (0.05). Missing keys
+        and axes are off.
+    seed : int
+        Seed of the random parts (disturbance and noise of each trial), >= 0.
+    substeps : int
+        Integration sub-steps per sample where friction or ripple is on (>= 1).
+
+    Notes
+    -----
+    ``discrete``, ``impulse_response``, ``lifted`` and ``closed_loop`` describe the
+    nominal linear model (what a learning law is designed on); ``simulate`` runs the
+    realistic one. With every departure off it is exactly its nominal Machine.
+
+    Examples
+    --------
+    >>> from primlib.plant import RealisticMachine
+    >>> rm = Machine.from_json("data/machines/realistic-xyz.json")  # "kind": "realistic"
+    >>> u = np.zeros((400, 3))
+    >>> true = rm.simulate(u, start=[10.0, 0.0, 0.0], trial=1)  # the noise-free motion
+    >>> measured = rm.simulate(u, start=[10.0, 0.0, 0.0], trial=1, noise=True)
+    >>> bool(abs(np.std(measured - true) - 0.001) < 1e-4)  # 1 um measurement noise
+    True
+    """
+
+    kind: ClassVar[str] = "realistic"
+
+    def __init__(
+        self,
+        name: str,
+        dt: float,
+        axes,
+        plants: Mapping[str, Any],
+        feedback: Mapping[str, Any] | None = None,
+        departures: Mapping[str, Any] | None = None,
+        *,
+        seed: int = 0,
+        substeps: int = 4,
+    ) -> None:
+        super().__init__(name, dt, axes, plants, feedback)
+        self._departures = validate_departures(departures, self.axes)
+        self._seed = check_count(seed, "seed", 0)
+        self._substeps = check_count(substeps, "substeps", 1)
+        deps = [self._departures[a] for a in self.axes]
+        self._linear = Machine(
+            name,
+            self.dt,
+            self.axes,
+            {a: _linear_plant(*self._plants[a], self._departures[a]) for a in self.axes},
+            self.feedback,
+        )
+        self._kernels = [
+            _loop_kernel(a, *self._plants[a], dep, self.dt, self._substeps)
+            if dep["coulomb"] > 0 or dep["ripple"] > 0
+            else None
+            for a, dep in zip(self.axes, deps, strict=True)
+        ]
+        self._sigma_d = np.array([dep["disturbance"] for dep in deps])
+        self._pole_d = np.exp(
+            -2 * np.pi * self.dt * np.array([dep["disturbance_bandwidth"] for dep in deps])
+        )
+        self._sigma_n = np.array([dep["noise"] for dep in deps])
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def departures(self) -> dict[str, dict[str, float]]:
+        """Per-axis departure parameters, complete (copies)."""
+        return {a: dict(p) for a, p in self._departures.items()}
+
+    @property
+    def seed(self) -> int:
+        return self._seed
+
+    @property
+    def substeps(self) -> int:
+        return self._substeps
+
+    def nominal(self) -> Machine:
+        """The nominal linear Machine (the plants and feedback, no departure)."""
+        return Machine(self.name, self.dt, self.axes, self.plants, self.feedback)
+
+    def linear_part(self) -> Machine:
+        """The linear Machine with the linear departures (viscous friction, resonance)."""
+        return Machine(self.name, self.dt, self.axes, self._linear.plants, self.feedback)
+
+    # ------------------------------------------------------------------ random parts
+    def disturbance(self, n: int, trial: int = 0) -> np.ndarray:
+        """Trial ``trial``'s input disturbance, shape (n, d), input units (zeros where off).
+
+        First-order low-pass filtered Gaussian noise, stationary from the first sample:
+        ``d[k] = a d[k-1] + sqrt(1 - a^2) sigma e[k]``, ``a = exp(-2 pi f_b dt)``.
+        """
+        n, trial = check_count(n, "n", 0), check_count(trial, "trial", 0)
+        if not np.any(self._sigma_d):
+            return np.zeros((n, self.dim))
+        e = np.random.default_rng((self._seed, trial, _DISTURBANCE)).standard_normal(
+            (n + 1, self.dim)
+        )
+        out = np.empty((n, self.dim))
+        for i, (a, sigma) in enumerate(zip(self._pole_d, self._sigma_d, strict=True)):
+            zi = [a * sigma * e[0, i]]
+            out[:, i] = signal.lfilter([math.sqrt(1 - a * a) * sigma], [1.0, -a], e[1:, i], zi=zi)[
+                0
+            ]
+        return out
+
+    def measurement_noise(self, n: int, trial: int = 0) -> np.ndarray:
+        """Trial ``trial``'s measurement noise, shape (n, d), length units (zeros where off)."""
+        n, trial = check_count(n, "n", 0), check_count(trial, "trial", 0)
+        if not np.any(self._sigma_n):
+            return np.zeros((n, self.dim))
+        rng = np.random.default_rng((self._seed, trial, _NOISE))
+        return rng.standard_normal((n, self.dim)) * self._sigma_n
+
+    # ------------------------------------------------------------------ simulation
+    def _check_start(self, start) -> np.ndarray:
+        if start is None:
+            return np.zeros(self.dim)
+        s = np.asarray(start, dtype=float).reshape(-1)
+        if s.shape != (self.dim,) or not np.all(np.isfinite(s)):
+            raise InputError(
+                f"start: expected {self.dim} finite coordinates (user units), got {start!r}"
+            )
+        return s
+
+    def simulate(
+        self,
+        u: Any,
+        reference: Any = None,
+        start: Any = None,
+        *,
+        trial: int = 0,
+        noise: bool = False,
+    ) -> np.ndarray:
+        """Output of the realistic machine for input ``u``, from rest at ``start``.
+
+        Parameters
+        ----------
+        u : array, shape (n, d)
+            Input per axis (feedforward added to the PID output where there is feedback).
+        reference : array, shape (n, d), optional
+            Reference of the PID loops (relative to the start), None = zeros.
+        start : array, shape (d,), optional
+            Absolute start position, user units (the ripple's phase); default 0.
+        trial : int
+            Trial number (>= 0): selects the disturbance and noise realisation.
+        noise : bool
+            False (default): the true, noise-free motion; True: the measurement.
+
+        Returns
+        -------
+        y : array, shape (n, d)
+            Position relative to the start, user units; ``y[k]`` responds to ``u[: k]``.
+        """
+        u = self.check_signal(u, "u")
+        r = None
+        if reference is not None:
+            r = self.check_signal(reference, "reference")
+            if r.shape != u.shape:
+                raise InputError(f"reference: expected the shape of u {u.shape}, got {r.shape}")
+        s = self._check_start(start)
+        n = u.shape[0]
+        nz = self.measurement_noise(n, trial)
+        if np.any(self._sigma_d):
+            u = u + self.disturbance(n, trial)
+        y = self._motion(u, r, s, nz)
+        return y + nz if noise else y
+
+    def _motion(self, u: np.ndarray, r, start: np.ndarray, nz: np.ndarray, loop=None):
+        """Noise-free motion for the total input ``u`` (disturbance included); ``loop``
+        (tests only) forces the per-sample loop on those axes."""
+        fb = self.feedback or {}
+        r_pid = r
+        if fb and np.any(nz):
+            r_pid = (np.zeros_like(u) if r is None else r) - nz
+        y = self._linear.simulate(u, r_pid)
+        for i, a in enumerate(self.axes):
+            kern = self._kernels[i]
+            if kern is None and loop is not None and i in loop:
+                kern = _loop_kernel(
+                    a, *self._plants[a], self._departures[a], self.dt, self._substeps
+                )
+            if kern is None:
+                continue
+            pid = None
+            if a in fb:
+                g = fb[a]
+                pid = (g["kp"], g["ki"], g["kd"], g["tf"], self.dt)
+            r_i = np.zeros(len(u)) if r is None else r[:, i]
+            y[:, i] = _run_axis(
+                kern, u[:, i].tolist(), r_i.tolist(), nz[:, i].tolist(), float(start[i]), pid
+            )
+        return y
+
+    def reference_response(self, reference: Any) -> np.ndarray:
+        """Noise-free output in the PID loops for u = 0 (trial 0, start 0), shape (n, d)."""
+        r = self.check_signal(reference, "reference")
+        return self.simulate(np.zeros_like(r), r)
+
+    def impulse_response(self, n: int) -> np.ndarray:
+        """Markov parameters of the nominal linear model (closed loop where there is
+        feedback): what learning laws design on."""
+        return self.nominal().impulse_response(n)
+
+    def trials(self, start: Any = None, *, noise: bool = True, first: int = 0) -> TrialRunner:
+        """A runner of successive trials from ``start`` (see :class:`TrialRunner`)."""
+        return TrialRunner(self, start, noise=noise, first=first)
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_machine(
+        cls,
+        machine: Machine,
+        *,
+        typical_input: Any = None,
+        typical_velocity: Any = None,
+        seed: int = 0,
+        substeps: int = 4,
+        name: str | None = None,
+        **departures: Any,
+    ) -> RealisticMachine:
+        """A realistic machine on a nominal Machine's plants and feedback.
+
+        Parameters
+        ----------
+        machine : Machine
+            The nominal linear machine (its ``nominal()`` if it has one).
+        typical_input, typical_velocity : float or array, shape (d,), optional
+            When ``typical_input`` is given, ``coulomb``, ``ripple``, ``disturbance`` and
+            ``viscous`` are fractions "of the typical input"
+            (:func:`primlib.plant.typical_scales` measures both scales; the convention is
+            in :func:`primlib.plant.scale_departures`).
+        seed, substeps : int
+        name : str, optional
+            Default: the machine's name.
+        **departures
+            Departure keys, each a number (every axis) or one per axis.
+
+        Examples
+        --------
+        >>> from primlib.plant import RealisticMachine
+        >>> rm = RealisticMachine.from_machine(m, coulomb=0.02, typical_input=[5.0, 4.0, 2.0])
+        >>> rm.departures["y"]["coulomb"]
+        0.08
+        """
+        if hasattr(machine, "nominal"):
+            machine = machine.nominal()
+        deps = scale_departures(machine.axes, departures, typical_input, typical_velocity)
+        return cls(
+            machine.name if name is None else name,
+            machine.dt,
+            machine.axes,
+            machine.plants,
+            machine.feedback,
+            deps,
+            seed=seed,
+            substeps=substeps,
+        )
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> RealisticMachine:
+        """Build from the JSON dictionary (``"kind": "realistic"``; docs/files.rst).
+
+        Raises
+        ------
+        InputError
+            Unknown or missing keys, or any invalid field.
+        """
+        if not isinstance(d, Mapping):
+            raise InputError(f"machine: expected a JSON object, got {type(d).__name__}")
+        if d.get("kind", cls.kind) != cls.kind:
+            raise InputError(f"machine kind: expected {cls.kind!r}, got {d.get('kind')!r}")
+        check_keys(d, _TOP_KEYS, ("name", "dt", "axes", "plants"))
+        axes = d["axes"]
+        if not isinstance(axes, (list, tuple)):
+            raise InputError(f"axes: expected a list of axis names, got {axes!r}")
+        m = cls(
+            d["name"],
+            d["dt"],
+            axes,
+            d["plants"],
+            d.get("feedback"),
+            d.get("departures"),
+            seed=d.get("seed", 0),
+            substeps=d.get("substeps", 4),
+        )
+        return read_note(m, d)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary; ``RealisticMachine.from_dict(m.to_dict()) == m``."""
+        out = super().to_dict()
+        out.update(seed=self._seed, substeps=self._substeps, departures=self.departures)
+        return out
+
+    def __repr__(self) -> str:
+        fb = "PID" if self.feedback else "open loop"
+        return f"RealisticMachine({self.name!r}, dt={self.dt}, axes={list(self.axes)}, {fb})"
+
+
+class TrialRunner:
+    """Successive trials of a :class:`RealisticMachine` from one start position.
+
+    Each call of :meth:`simulate` (or :meth:`run`) is the next trial (new disturbance and
+    noise) and returns the measurement (``noise=True``) or the true motion; the true motion
+    of every trial is kept in :attr:`true`. It has the attributes ``primlib.ilc.learn``
+    reads from a plant (``dt``, ``axes``, ``dim``, ``feedback``, ``check_signal``), so a
+    series of trials learns on the machine as on a real one.
+
+    Parameters
+    ----------
+    machine : RealisticMachine
+    start : array, shape (d,), optional
+        Absolute start position (user units).
+    noise : bool
+        Return measurements (default) or the true motion.
+    first : int
+        Number of the first trial.
+    """
+
+    def __init__(
+        self, machine: RealisticMachine, start=None, *, noise: bool = True, first: int = 0
+    ):
+        self.machine = machine
+        self.start = machine._check_start(start)
+        self.noise = bool(noise)
+        self.trial = check_count(first, "first", 0)
+        self.true: list[np.ndarray] = []
+
+    dt = property(lambda self: self.machine.dt)
+    axes = property(lambda self: self.machine.axes)
+    dim = property(lambda self: self.machine.dim)
+    feedback = property(lambda self: self.machine.feedback)
+
+    def check_signal(self, x: Any, what: str) -> np.ndarray:
+        return self.machine.check_signal(x, what)
+
+    def simulate(self, u: Any, reference: Any = None) -> np.ndarray:
+        """Run the next trial; returns the measured (or true) output, shape (n, d)."""
+        m = self.machine
+        y = m.simulate(u, reference, self.start, trial=self.trial)
+        self.true.append(y)
+        nz = m.measurement_noise(len(y), self.trial) if self.noise else 0.0
+        self.trial += 1
+        return y + nz
+
+    def run(self, u: Any) -> np.ndarray:
+        """The next trial for input ``u`` (a :class:`primlib.trials.Plant`)."""
+        return self.simulate(u)
+
+
+register_kind("realistic", RealisticMachine)
