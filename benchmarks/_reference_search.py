@@ -9,6 +9,9 @@
 ``loop``
     The grid's candidates, one ``kabsch`` call each and no pruning: the plain per-candidate
     loop the benchmark times against.
+``invariant-bound``
+    The index search with the rotation-invariant bound for every rotation family (the
+    baseline of the per-axis bounds of ``rotation="none"`` and ``"z"``).
 
 :func:`reference_segment_path` runs the production segmentation with one of them as the
 seed finder, so only the seeds differ.
@@ -22,13 +25,21 @@ import numpy as np
 
 from primlib.match import BankIndex, SearchOptions, kabsch
 from primlib.match._bank import as_index
+from primlib.match._bounds import half_bound_margin, half_window_bound
 from primlib.match._grid import GridSearch
 from primlib.match._index_search import ArcQuery, IndexSearch
 from primlib.match._segment import resolve_options, segment_with
 
-__all__ = ["ScanSearch", "LoopSearch", "GridSearch", "reference_segment_path", "SEARCHES"]
+__all__ = [
+    "ScanSearch",
+    "LoopSearch",
+    "GridSearch",
+    "InvariantBoundSearch",
+    "reference_segment_path",
+    "SEARCHES",
+]
 
-SEARCHES = ("scan", "grid", "loop")
+SEARCHES = ("scan", "grid", "loop", "invariant-bound")
 
 
 class ScanSearch(IndexSearch):
@@ -41,6 +52,19 @@ class ScanSearch(IndexSearch):
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
         return np.zeros(ws.size)
+
+
+class InvariantBoundSearch(IndexSearch):
+    """The index search with the rotation-invariant half-window bound for every rotation
+    family (as before the per-axis bounds of restricted families): the baseline of
+    ``bench_match.py --restricted``."""
+
+    name: ClassVar[str] = "invariant-bound"
+
+    def first_bound(self, aq: ArcQuery) -> np.ndarray:
+        psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
+        margin = half_bound_margin(aq.k, aq.qc.shape[1], pmax, radius)
+        return half_window_bound(psum, aq.n_windows, aq.dil, aq.moments, margin)
 
 
 class _NamedGrid(GridSearch):
@@ -72,7 +96,12 @@ def reference_segment_path(
     """``segment_path`` with the seeds of reference ``search`` (one of :data:`SEARCHES`)."""
     index: BankIndex = as_index(bank)
     opts = resolve_options(rotation, time_scale, options)
-    kinds = {"scan": ScanSearch, "grid": _NamedGrid, "loop": LoopSearch}
+    kinds = {
+        "scan": ScanSearch,
+        "grid": _NamedGrid,
+        "loop": LoopSearch,
+        "invariant-bound": InvariantBoundSearch,
+    }
     if search not in kinds:
         raise ValueError(f"search: expected one of {', '.join(SEARCHES)}, got {search!r}")
     return segment_with(kinds[search](index, opts), index, points, dt, eps, opts, min_step)

@@ -16,7 +16,10 @@ Reports, each beside its baseline measured in the same run:
 * first-call and warm match time against library size 10 / 100 / 1,000.
 
 Run: ``python benchmarks/bench_match.py`` (single-threaded BLAS; ``--full-grid`` also runs
-the time grid on 1,000 primitives, about ten minutes).
+the time grid on 1,000 primitives, about ten minutes; ``--restricted`` instead times the
+restricted searches — ``rotation="none"``, time scale 1-1 — against the default on the
+bundled library and ``data/paths/glyph-chain.csv``, the per-axis bound beside the
+rotation-invariant one).
 """
 
 from __future__ import annotations
@@ -113,6 +116,51 @@ def key(segments) -> list[tuple[float, int | None]]:
     return [(round(s.end, 9), s.primitive) for s in segments]
 
 
+def restricted(machine: Machine) -> None:
+    """``--restricted``: the bundled library and data/paths/glyph-chain.csv, matched with the
+    default search, ``rotation="none"`` and ``time_scale=(1, 1)``; the restricted searches
+    with the per-axis bounds beside the same search with the rotation-invariant bound."""
+    from primlib.io import read_signal_csv
+    from primlib.match import default_eps
+
+    lib = Library()
+    lib.add_machine(machine)
+    for f in sorted((ROOT / "data" / "library").glob("*.csv")):
+        if not f.name.endswith(".signal.csv"):
+            _, u = read_signal_csv(f.with_suffix(".signal.csv"))
+            lib.add(Trajectory.from_csv(f), u, machine=machine.name, name=f.stem)
+    index = BankIndex(lib.bank(machine.name))
+    path = Trajectory.from_csv(ROOT / "data" / "paths" / "glyph-chain.csv")
+    n = int(round(path.duration / machine.dt)) + 1
+    pts, dt = path.at(np.linspace(0.0, 1.0, n)), path.duration / (n - 1)
+    eps = default_eps(path)
+    print(f"\nrestricted searches: bundled library ({index.k} primitives), glyph-chain.csv")
+    print("| search | time | segments | probes | windows past bound 1 | baseline | ratio |")
+    print("|---|---|---|---|---|---|---|")
+    t_def, (segs, info) = median_time(lambda: segment_path(index, pts, dt, eps), 1)
+    print(f"| default | {t_def:.2f} s | {len(segs)} | {info['probes']} | {info['bounded']:,} "
+          "| - | - |")  # fmt: skip
+    for label, kw in (("rotation none", {"rotation": "none"}),):
+        t_new, (segs, info) = median_time(lambda kw=kw: segment_path(index, pts, dt, eps, **kw), 1)
+        t_old, (segs_o, info_o) = median_time(
+            lambda kw=kw: reference_segment_path(index, pts, dt, eps, "invariant-bound", **kw), 1
+        )
+        assert key(segs) == key(segs_o), "the per-axis bound changed the segmentation"
+        print(
+            f"| {label} | {t_new:.2f} s | {len(segs)} | {info['probes']} | "
+            f"{info['bounded']:,} (was {info_o['bounded']:,}) | invariant bound {t_old:.2f} s "
+            f"| {t_old / t_new:.1f}x; {t_new / t_def:.1f}x the default |"
+        )
+    t_ts, (segs, info) = median_time(
+        lambda: segment_path(index, pts, dt, eps, time_scale=(1.0, 1.0)), 1
+    )
+    print(
+        f"| time scale 1-1 | {t_ts:.2f} s | {len(segs)} | {info['probes']} | "
+        f"{info['bounded']:,} | default {t_def:.2f} s | {t_ts / t_def:.1f}x the default |"
+    )
+    lib.close()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument(
@@ -120,8 +168,16 @@ def main() -> None:
         action="store_true",
         help="also run the time-uniform grid on 1,000 primitives (about 10 minutes)",
     )
+    ap.add_argument(
+        "--restricted",
+        action="store_true",
+        help="only the restricted searches (rotation none, time scale 1-1) on glyph-chain",
+    )
     args = ap.parse_args()
     machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    if args.restricted:
+        restricted(machine)
+        return
     print(f"machine {machine.name}: dt {machine.dt} s; eps {EPS}; pieces {len(PIECES)}")
 
     sizes = (10, 100, 1000)

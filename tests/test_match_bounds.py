@@ -13,6 +13,7 @@ from primlib.match._bounds import (
     gyration_bound,
     half_bound_margin,
     half_window_bound,
+    half_window_bound_fixed,
     principal_bound,
     strided_prefix_sums,
     sym_eigvals,
@@ -77,10 +78,40 @@ def test_bounds_never_exceed_the_exact_rmsd_of_any_window(seed, d, k, dil, kind,
     lb1, lb2 = _bounds(pts, qc, dil)
     scale = 1e-12 * (1.0 + np.abs(pts).max() + np.abs(qc).max())
     rotations = ["full", "none"] + (["z"] if d == 3 else [])
+    psum, pmax, radius = strided_prefix_sums(pts, dil)
+    margin = half_bound_margin(k, d, pmax, radius) * np.sqrt(d)
     for rotation in rotations:
         exact = _exact(wins, qc, rotation)
         assert np.all(lb1 <= exact + scale), (rotation, np.max(lb1 - exact))
         assert np.all(lb2 <= exact + scale), (rotation, np.max(lb2 - exact))
+        if rotation != "full":
+            # the restricted families' own bound: at or above the rotation-invariant one
+            # (up to its wider round-off margin)
+            lb3 = half_window_bound_fixed(
+                psum, len(wins), dil, QueryMoments.of(qc), margin, rotation
+            )
+            assert np.all(lb3 <= exact + scale), (rotation, np.max(lb3 - exact))
+            assert np.all(lb3 >= lb1 - margin - 1e-9 * (1 + np.abs(lb1)))
+
+
+def test_restricted_bounds_are_much_tighter_for_restricted_rotations():
+    # a rotated copy of a window: any-rotation bounds are ~0, the no-rotation bound is not
+    rng = np.random.default_rng(5)
+    pts = np.cumsum(rng.normal(size=(300, 3)), axis=0)
+    wins = _windows(pts, 16, 1)
+    r = Rotation.from_euler("z", 90, degrees=True).as_matrix()
+    qc = wins[100] @ r.T
+    qc = qc - qc.mean(axis=0)
+    psum, pmax, radius = strided_prefix_sums(pts, 1)
+    query = QueryMoments.of(qc)
+    margin = half_bound_margin(16, 3, pmax, radius) * np.sqrt(3)
+    full = half_window_bound(psum, len(wins), 1, query, margin)
+    none = half_window_bound_fixed(psum, len(wins), 1, query, margin, "none")
+    z = half_window_bound_fixed(psum, len(wins), 1, query, margin, "z")
+    assert full[100] < 1e-9 and z[100] < 1e-9  # a turn about z is allowed by both
+    exact = _exact(wins, qc, "none")
+    assert none[100] > 0.3 * exact[100] > 0
+    assert np.median(none / exact) > 1.5 * np.median(np.maximum(full, 0) / exact)
 
 
 def test_bounds_are_not_vacuous():

@@ -35,6 +35,7 @@ __all__ = [
     "QueryMoments",
     "strided_prefix_sums",
     "half_window_bound",
+    "half_window_bound_fixed",
     "half_bound_margin",
     "principal_bound",
     "gyration_bound",
@@ -105,6 +106,10 @@ class QueryMoments:
         Principal values s_i(Q̃) (square roots of the eigenvalues of Q̃ᵀQ̃), descending.
     principal_error : float
         Bound on their error from the closed-form eigenvalues.
+    half_vector : array, shape (d,)
+        First half's centroid minus the second's.
+    half_axis_energy : array, shape (2, d)
+        Σ (q − q̄_h)² per half and axis.
     """
 
     k: int
@@ -115,6 +120,8 @@ class QueryMoments:
     half_gyration: tuple[float, float]
     principal: np.ndarray
     principal_error: float
+    half_vector: np.ndarray
+    half_axis_energy: np.ndarray
 
     @classmethod
     def of(cls, qc: np.ndarray) -> QueryMoments:
@@ -138,6 +145,13 @@ class QueryMoments:
             principal=sv,
             # closed-form eigenvalues: acos near ±1 and the rest cost at most 1e-7·trace
             principal_error=math.sqrt(d * 1e-7 * float(np.trace(scat)) / k),
+            half_vector=h1.mean(axis=0) - h2.mean(axis=0),
+            half_axis_energy=np.stack(
+                [
+                    ((h1 - h1.mean(axis=0)) ** 2).sum(axis=0),
+                    ((h2 - h2.mean(axis=0)) ** 2).sum(axis=0),
+                ]
+            ),
         )
 
 
@@ -209,6 +223,64 @@ def half_window_bound(
         dd += dg1
         dd += dg2
         out = np.sqrt(dd, out=lb[c0:c1])
+        out -= margin + 1e-12 * (query.gyration + out)
+    return lb
+
+
+def half_window_bound_fixed(
+    psum: np.ndarray,
+    n_windows: int,
+    dil: int,
+    query: QueryMoments,
+    margin: float,
+    rotation: str,
+) -> np.ndarray:
+    """The half-window bound for the restricted rotation families ``"none"`` and ``"z"``.
+
+    With R = I the centroid errors satisfy δ1 − δ2 = Δ(P) − Δ(Q) as vectors (Δ the first
+    half's centroid minus the second's), and the centred error splits per axis, each axis
+    bounded by its own radius of gyration (Cauchy–Schwarz per axis):
+    K·rmsd² ≥ k1k2/K·|Δ(P) − Δ(Q)|² + Σ_h Σ_a k_h (g_ha(P) − g_ha(Q))². A rotation about z
+    keeps the z components and the xy norms: the xy parts enter as for ``"full"`` (norms of
+    the xy centroid difference, xy radii of gyration), z as for ``"none"``. Both are far
+    tighter than the rotation-invariant bound when the family is restricted. ``margin`` as
+    for :func:`half_window_bound`, with the per-axis energies' errors (d times the total's).
+
+    Returns
+    -------
+    array, shape (n_windows,)
+    """
+    k, k1, k2 = query.k, query.k1, query.k2
+    d = query.principal.size
+    diag = [d + 1 + i for i, (a, b) in enumerate(_pairs(d)) if a == b]
+    lb = np.empty(n_windows)
+    for c0 in range(0, n_windows, _BLOCK):
+        c1 = min(c0 + _BLOCK, n_windows)
+        p0 = psum[:, c0:c1]
+        p1 = psum[:, c0 + k1 * dil : c1 + k1 * dil]
+        s1 = p1 - p0
+        s2 = psum[:, c0 + k * dil : c1 + k * dil] - p1
+        dvec = s1[:d] * (1.0 / k1) - s2[:d] * (1.0 / k2) - query.half_vector[:, None]
+        e = [
+            np.maximum(s[diag] - s[:d] * s[:d] * (1.0 / kh), 0.0) for s, kh in ((s1, k1), (s2, k2))
+        ]
+        if rotation == "z":
+            pv = s1[:2] * (1.0 / k1) - s2[:2] * (1.0 / k2)
+            dxy = np.sqrt(np.einsum("ij,ij->j", pv, pv)) - math.hypot(*query.half_vector[:2])
+            dist2 = dxy * dxy + dvec[2] * dvec[2]
+            gap = 0.0
+            for h, kh in ((0, k1), (1, k2)):
+                qe = query.half_axis_energy[h]
+                gxy = np.sqrt((e[h][0] + e[h][1]) / kh) - math.sqrt((qe[0] + qe[1]) / kh)
+                gz = np.sqrt(e[h][2] / kh) - math.sqrt(qe[2] / kh)
+                gap = gap + kh * (gxy * gxy + gz * gz)
+        else:
+            dist2 = np.einsum("ij,ij->j", dvec, dvec)
+            gap = 0.0
+            for h, kh in ((0, k1), (1, k2)):
+                g = np.sqrt(e[h] / kh) - np.sqrt(query.half_axis_energy[h] / kh)[:, None]
+                gap = gap + kh * np.einsum("ij,ij->j", g, g)
+        out = np.sqrt((k1 * k2 / k * dist2 + gap) / k, out=lb[c0:c1])
         out -= margin + 1e-12 * (query.gyration + out)
     return lb
 

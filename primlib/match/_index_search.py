@@ -44,6 +44,7 @@ from primlib.match._bounds import (
     QueryMoments,
     half_bound_margin,
     half_window_bound,
+    half_window_bound_fixed,
     principal_bound,
 )
 from primlib.match._grid import GridSearch
@@ -150,10 +151,18 @@ class IndexSearch:
         return ArcQuery(idx, jb, lv, dil, step, ell, u, qc, sq, QueryMoments.of(qc), dq, per_axis)
 
     def first_bound(self, aq: ArcQuery) -> np.ndarray:
-        """Half-window lower bound of every window's shape RMSD (:mod:`._bounds`)."""
+        """Half-window lower bound of every window's shape RMSD (:mod:`._bounds`), the
+        per-axis form when the rotation family is restricted."""
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
-        margin = half_bound_margin(aq.k, aq.qc.shape[1], pmax, radius)
-        return half_window_bound(psum, aq.n_windows, aq.dil, aq.moments, margin)
+        d = aq.qc.shape[1]
+        margin = half_bound_margin(aq.k, d, pmax, radius)
+        rotation = self.opts.rotation
+        if rotation == "full":
+            return half_window_bound(psum, aq.n_windows, aq.dil, aq.moments, margin)
+        # per-axis energies: each carries up to the total's error bound
+        return half_window_bound_fixed(
+            psum, aq.n_windows, aq.dil, aq.moments, margin * math.sqrt(d), rotation
+        )
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
         """Principal-value lower bound of the shape RMSD of windows ``ws``."""
