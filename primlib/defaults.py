@@ -10,6 +10,7 @@ __all__ = [
     "EPS_FRACTION",
     "TIME_SCALE",
     "BAND_SAMPLES",
+    "MIN_SEGMENT_BANDS",
     "FIT_RTOL",
     "ILC_BAND",
     "MAX_ABS_VALUE",
@@ -26,6 +27,12 @@ TIME_SCALE: tuple[float, float] = (0.25, 4.0)
 
 # Width of a splice's transition band, in samples of the machine's dt.
 BAND_SAMPLES = 8
+
+# Shortest matched piece worth a junction, in transition bands (BAND_SAMPLES dt each). The
+# band is centred on each junction, so a piece one band long is blended over its whole length
+# (half a band at each end) and nothing of its stored input survives: shorter matches are
+# left to the model inverse that fills unmatched stretches.
+MIN_SEGMENT_BANDS = 1.0
 
 # NURBS fit tolerance relative to the path's size.
 FIT_RTOL = 1e-4

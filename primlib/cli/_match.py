@@ -10,6 +10,7 @@ is written, so a bad input writes nothing.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import click
@@ -53,6 +54,13 @@ def _table(mt, duration: float) -> str:
     return "\n".join([line(headers), line(["-" * w for w in widths]), *(line(r) for r in rows)])
 
 
+def _check_numbers(eps: float | None, min_segment: float | None) -> None:
+    if eps is not None and not (math.isfinite(eps) and eps > 0):
+        raise InputError(f"--eps: expected a tolerance > 0, got {eps:g}")
+    if min_segment is not None and not (math.isfinite(min_segment) and min_segment >= 0):
+        raise InputError(f"--min-segment: expected a duration >= 0 s, got {min_segment:g}")
+
+
 @main.command("match")
 @click.argument("path_csv", type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
@@ -82,6 +90,17 @@ def _table(mt, duration: float) -> str:
     show_default=True,
     help="Allowed stored duration / segment duration (low high).",
 )
+@click.option(
+    "--min-segment",
+    "min_segment",
+    type=float,
+    default=None,
+    metavar="SECONDS",
+    help=(
+        "Shortest matched segment kept; shorter matches join the unmatched stretch beside "
+        "them (filled from the model). Default: one transition band, 8 machine steps."
+    ),
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of a table.")
 @click.option(
     "--plot",
@@ -105,6 +124,7 @@ def match(
     eps: float | None,
     rotation: str,
     time_scale: tuple[float, float],
+    min_segment: float | None,
     as_json: bool,
     plot_file: Path | None,
     out_file: Path | None,
@@ -125,8 +145,7 @@ def match(
     from primlib.match import default_eps
     from primlib.nurbs import read_path
 
-    if eps is not None and not (np.isfinite(eps) and eps > 0):
-        raise InputError(f"--eps: expected a tolerance > 0, got {eps:g}")
+    _check_numbers(eps, min_segment)
     inputs = (path_csv, _db(ctx))
     check_output("--plot", plot_file, FIGURE_FORMATS, inputs)
     check_output("--out", out_file, TABLE_FORMATS, inputs)
@@ -144,6 +163,8 @@ def match(
             )
         e = eps if eps is not None else default_eps(traj)
         kw = {"rotation": rotation, "time_scale": tuple(time_scale)}
+        if min_segment is not None:  # else the library's default (a server's too)
+            kw["min_segment"] = min_segment
         ws = None
         if out_file is not None:
             ws = lib.warm_start(traj, machine=machine_name, eps=e, **kw)
@@ -167,17 +188,23 @@ def match(
     if as_json:
         click.echo(_as_json(mt, path_csv, traj.duration, out_file, plot_file))
         return
-    info = mt.info
-    click.echo(
-        f"{path_csv}: {len(mt.segments)} segment(s), {mt.n_unmatched} unmatched, "
-        f"machine {machine_name}, eps {e:.4g}, rotation {rotation}, "
-        f"{info.get('probes', 0)} probes in {info.get('seconds', 0.0):.2f} s"
-    )
+    click.echo(_summary(mt, path_csv, machine_name, e, rotation))
     click.echo(_table(mt, traj.duration))
     if out_file is not None:
         click.echo(f"warm-start input written to {out_file}")
     if plot_file is not None:
         click.echo(f"figure written to {plot_file}")
+
+
+def _summary(mt, path_csv: Path, machine_name: str, eps: float, rotation: str) -> str:
+    """The line above the table: counts, the fraction matched, the settings, the time."""
+    info = mt.info
+    return (
+        f"{path_csv}: {len(mt.segments)} segment(s), {mt.n_unmatched} unmatched, "
+        f"{100 * mt.matched_fraction:.1f} % of the path matched, machine {machine_name}, "
+        f"eps {eps:.4g}, rotation {rotation}, "
+        f"{info.get('probes', 0)} probes in {info.get('seconds', 0.0):.2f} s"
+    )
 
 
 def _as_json(mt, path_csv: Path, duration: float, out_file, plot_file) -> str:

@@ -9,12 +9,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from primlib._errors import InputError
-from primlib.defaults import EPS_FRACTION
+from primlib.defaults import BAND_SAMPLES, EPS_FRACTION, MIN_SEGMENT_BANDS
 from primlib.match._bank import BankIndex, as_index
 from primlib.match._checks import check_path_samples
 from primlib.match._interp import cubic_at
 from primlib.match._options import SearchOptions
-from primlib.match._segment import segment_path
+from primlib.match._segment import drop_short, segment_path
 from primlib.match._types import Match, Segment
 
 if TYPE_CHECKING:
@@ -36,6 +36,7 @@ def match_path(
     rotation: str = "full",
     time_scale: tuple[float, float] | None = None,
     min_step: float | None = None,
+    min_segment: float | None = None,
     options: SearchOptions | None = None,
 ) -> Match:
     """Match a new path against a machine's primitives.
@@ -55,6 +56,11 @@ def match_path(
         :data:`primlib.defaults.TIME_SCALE`.
     min_step, options
         As for :func:`segment_path`.
+    min_segment : float, optional
+        Shortest matched segment kept, seconds of the path; a shorter match is not worth a
+        junction and becomes part of the unmatched stretch beside it (the warm start fills
+        those from the model). Default ``MIN_SEGMENT_BANDS`` transition bands of
+        ``BAND_SAMPLES`` machine steps (:mod:`primlib.defaults`); 0 keeps every match.
 
     Returns
     -------
@@ -63,8 +69,8 @@ def match_path(
     Raises
     ------
     InputError
-        eps <= 0, a path of another dimension than the machine, a bad option, a path
-        that does not move or has values out of range (:func:`check_path_samples`).
+        eps <= 0, min_segment < 0, a path of another dimension than the machine, a bad
+        option, a path that does not move or has values out of range (:func:`check_path_samples`).
     NoMatchError
         No usable primitive in the bank.
 
@@ -75,10 +81,13 @@ def match_path(
     (0.0, 1.0)
     >>> all(s.rmsd <= 0.05 for s in mt.segments if s.primitive is not None)
     True
+    >>> 0.0 <= mt.matched_fraction <= 1.0
+    True
     """
     if not (isinstance(eps, int | float) and math.isfinite(eps) and eps > 0):
         raise InputError(f"eps: expected a tolerance > 0, got {eps!r}")
     index = as_index(bank)
+    shortest = _shortest(min_segment, index.dt)
     machine = index.machine
     if path.dim != index.dim:
         raise InputError(f"path: expected {index.dim}-D like machine {machine!r}, got {path.dim}-D")
@@ -96,7 +105,20 @@ def match_path(
         min_step=min_step,
         options=options,
     )
+    segments = drop_short(segments, float(shortest) / path.duration, index.dim)
+    info["min_segment"] = float(shortest)
     return Match(tuple(segments), machine, float(eps), rotation, path, info)
+
+
+def _shortest(min_segment: float | None, dt: float) -> float:
+    """``min_segment`` checked, or its default (one transition band at the bank's dt)."""
+    if min_segment is None:
+        return MIN_SEGMENT_BANDS * BAND_SAMPLES * dt
+    if not (isinstance(min_segment, int | float) and math.isfinite(min_segment)):
+        raise InputError(f"min_segment: expected a duration >= 0 s, got {min_segment!r}")
+    if min_segment < 0:
+        raise InputError(f"min_segment: expected a duration >= 0 s, got {min_segment!r}")
+    return float(min_segment)
 
 
 def matched_pieces(

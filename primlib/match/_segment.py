@@ -43,7 +43,14 @@ from primlib.match._types import Segment
 if TYPE_CHECKING:
     from primlib.store import Bank
 
-__all__ = ["segment_path", "segment_with", "Seeder", "check_options", "resolve_options"]
+__all__ = [
+    "segment_path",
+    "segment_with",
+    "Seeder",
+    "check_options",
+    "resolve_options",
+    "drop_short",
+]
 
 _MIN_SAMPLES = 8  # shortest piece probed, in path samples
 
@@ -219,6 +226,20 @@ class _Segmenter:
 def _unmatched(a: float, b: float, d: int) -> Segment:
     nan = float("nan")
     return Segment(float(a), float(b), None, None, nan, nan, np.eye(d), np.zeros(d), nan, nan)
+
+
+def drop_short(segments: list[Segment], shortest: float, d: int) -> list[Segment]:
+    """Matched segments shorter than ``shortest`` (normalised time) made unmatched, merged
+    with the unmatched stretches beside them; the cuts of the others stay where they are."""
+    out: list[Segment] = []
+    for s in segments:
+        if s.primitive is not None and s.end - s.start < shortest * (1.0 - 1e-9):
+            s = _unmatched(s.start, s.end, d)
+        if s.primitive is None and out and out[-1].primitive is None:
+            s = _unmatched(out[-1].start, s.end, d)
+            out.pop()
+        out.append(s)
+    return out
 
 
 def segment_with(

@@ -87,6 +87,8 @@ class Match:
     ----------
     segments : tuple of Segment
         In path order, contiguous, first start 0, last end 1.
+    matched_fraction : float
+        (property) Fraction of the path's duration that matched segments cover.
     machine : str
     eps : float
         The RMSD tolerance each matched segment satisfies.
@@ -109,6 +111,11 @@ class Match:
     def n_unmatched(self) -> int:
         return sum(1 for s in self.segments if s.primitive is None)
 
+    @property
+    def matched_fraction(self) -> float:
+        """Fraction of the path's duration covered by matched segments, in [0, 1]."""
+        return float(sum(s.end - s.start for s in self.segments if s.primitive is not None))
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "machine": self.machine,
@@ -116,6 +123,7 @@ class Match:
             "rotation_mode": self.rotation_mode,
             "n_segments": len(self.segments),
             "n_unmatched": self.n_unmatched,
+            "matched_fraction": self.matched_fraction,
             "segments": [s.to_dict() for s in self.segments],
             "info": {k: v for k, v in self.info.items() if isinstance(v, int | float | str)},
         }

@@ -99,7 +99,7 @@ class WarmStarter:
             Kabsch RMSD tolerance (user units, > 0); default
             :func:`primlib.match.default_eps` of the path.
         **kw
-            ``rotation``, ``time_scale``, ``min_step``, ``options`` of
+            ``rotation``, ``time_scale``, ``min_step``, ``min_segment``, ``options`` of
             :func:`primlib.match.match_path`.
 
         Returns
