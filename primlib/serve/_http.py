@@ -26,7 +26,7 @@ from starlette.requests import Request
 from starlette.responses import JSONResponse, Response
 
 from primlib._errors import InputError, LibraryBusyError, NotFoundError, PrimlibError
-from primlib.serve._inputs import BadRequest
+from primlib.serve._inputs import BadRequest, fields, optional_str
 from primlib.serve._ops import LOGGER
 
 __all__ = [
@@ -39,6 +39,8 @@ __all__ = [
     "json_response",
     "wants_csv",
     "csv_text",
+    "path_request",
+    "service_of",
     "DEFAULT_MAX_BODY",
 ]
 
@@ -114,10 +116,13 @@ def _decode(raw: bytes) -> str:
         raise BadRequest("body: expected UTF-8 text, got binary data") from None
 
 
-async def read_json(request: Request, csv_ok: bool = False) -> Any:
-    """The body as JSON (or, with ``csv_ok``, as CSV text: ``str``), by its content type."""
+async def read_json(request: Request, csv_ok: bool = False, allow_empty: bool = False) -> Any:
+    """The body as JSON (or, with ``csv_ok``, as CSV text: ``str``), by its content type;
+    with ``allow_empty``, None for an empty body (all fields optional)."""
     kind = request.headers.get("content-type", "application/json").split(";")[0].strip().lower()
     raw = await read_body(request)
+    if allow_empty and not raw.strip():
+        return None
     if csv_ok and kind == "text/csv":
         return _decode(raw)
     if kind not in ("application/json", ""):
@@ -156,3 +161,33 @@ def csv_text(header: list[str], t: Any, values: Any) -> str:
     table = np.column_stack([np.asarray(t, dtype=float), np.asarray(values, dtype=float)])
     rows = "\n".join(",".join(map(repr, row)) for row in table.tolist())
     return ",".join(header) + "\n" + rows + "\n"
+
+
+def service_of(request: Request) -> Any:
+    """The :class:`~primlib.serve._service.Service` the application serves."""
+    return request.app.state.service
+
+
+async def path_request(
+    request: Request,
+    options: tuple[str, ...],
+    required: tuple[str, ...] = ("machine", "path"),
+    key: str = "path",
+) -> dict[str, Any]:
+    """The fields of a request that posts a path (match, warm start, a series' start and
+    step, where ``key`` is ``"measured"``).
+
+    A JSON body carries every field; a CSV body (``Content-Type: text/csv``) is the path
+    file (field ``key``) and the other fields come as query parameters.
+    """
+    got = await read_json(request, csv_ok=True)
+    if isinstance(got, str):
+        body: dict[str, Any] = dict(request.query_params)
+        if key in body:
+            raise BadRequest(f"{key}: expected in the CSV body, got a query parameter too")
+        body[key] = got
+    else:
+        body = got
+    body = fields(body, required, ("dt", *options) if key == "path" else options)
+    optional_str(body, "machine")
+    return body

@@ -37,6 +37,10 @@ __all__ = [
     "warm_options",
     "optional_str",
     "as_bool",
+    "series_options",
+    "trial_of",
+    "measured_of",
+    "SERIES_FIELDS",
 ]
 
 # Relative tolerance between a CSV file's time step and the machine's dt (as `ingest`).
@@ -103,7 +107,9 @@ def _rows(key: str, value: Any, d: int, what: str) -> np.ndarray:
     return a
 
 
-def path_of(body: Mapping[str, Any], machine: Any, key: str = "path") -> tuple[Any, np.ndarray]:
+def path_of(
+    body: Mapping[str, Any], machine: Any, key: str = "path", own_dt: bool = False
+) -> tuple[Any, np.ndarray]:
     """The path a request names, as a Trajectory, with its time grid.
 
     Parameters
@@ -112,6 +118,10 @@ def path_of(body: Mapping[str, Any], machine: Any, key: str = "path") -> tuple[A
         The request's fields: ``key`` (points, CSV text or NURBS) and optional ``dt``.
     machine : primlib.plant.Machine
         The machine it is for (its dt and axes).
+    own_dt : bool
+        CSV text is fitted at its own sample time (as ``primlib trials start`` reads a
+        file: the path is sampled on the machine's grid afterwards); by default it must be
+        sampled at the machine's dt (as ``primlib ingest`` requires of a stored path).
 
     Returns
     -------
@@ -142,12 +152,12 @@ def path_of(body: Mapping[str, Any], machine: Any, key: str = "path") -> tuple[A
 
         t, points = parse_path_csv(value, key)
         step = (t[-1] - t[0]) / (len(t) - 1)
-        if abs(step - dt) > _DT_RTOL * dt:
+        if not own_dt and abs(step - dt) > _DT_RTOL * dt:
             raise InputError(
                 f"{key}: expected samples at the dt of machine '{machine.name}' ({dt:g} s), "
                 f"got dt = {step:.9g} s"
             )
-        traj = _fit(key, points, dt)
+        traj = _fit(key, points, step if own_dt else dt)
     elif isinstance(value, list):
         step = _number("dt", body["dt"]) if body.get("dt") is not None else dt
         if not (math.isfinite(step) and step > 0):
@@ -237,3 +247,90 @@ def warm_options(body: Mapping[str, Any], traj: Any) -> tuple[float, dict[str, A
     if body.get("refine") is not None:
         kw["refine"] = as_bool("refine", body["refine"])
     return eps, kw
+
+
+# ---------------------------------------------------------------------------- trial series
+LAWS = ("p", "pd", "pid", "norm-optimal")
+SERIES_FIELDS = (
+    "first", "eps", "name", "law", "plain", "noise_aware", "average", "margin", "q_cutoff",
+)  # fmt: skip
+
+
+def _integer(key: str, value: Any) -> int:
+    if isinstance(value, str) and value.strip().lstrip("+-").isdigit():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise BadRequest(f"{key}: expected an integer, got {value!r}")
+    return value
+
+
+def series_options(body: Mapping[str, Any]) -> tuple[str, float | None, str | None, dict]:
+    """``(first, eps, name, options)`` of a series start.
+
+    ``first`` is ``"warm"`` (default), ``"inverse"`` or ``"cold"``. The law's options are
+    those of ``primlib trials start``: ``law``, ``plain`` (or its opposite, the Python
+    API's ``noise_aware``), ``average``, ``margin``, ``q_cutoff``. Only the options given
+    are returned: the others take :func:`primlib.trials.start`'s defaults (so a remote
+    start equals a local one), except that ``plain`` averages 1 trial unless told, as the
+    CLI's ``--plain``. The learner checks the values before anything is written.
+    """
+    first = optional_str(body, "first") or "warm"
+    eps = body.get("eps")
+    if eps is not None:
+        eps = _number("eps", eps)
+        if not (math.isfinite(eps) and eps > 0):
+            raise InputError(f"eps: expected a match tolerance > 0, got {eps:g}")
+    options: dict[str, Any] = {}
+    if body.get("law") is not None:
+        options["law"] = optional_str(body, "law")
+        if options["law"] not in LAWS:
+            raise InputError(f"law: expected one of {', '.join(LAWS)}, got {options['law']!r}")
+    plain = None if body.get("plain") is None else as_bool("plain", body["plain"])
+    aware = None if body.get("noise_aware") is None else as_bool("noise_aware", body["noise_aware"])
+    if plain is not None and aware is not None and plain == aware:
+        raise BadRequest(f"plain: contradicts noise_aware ({plain} and {aware}); give one of them")
+    if plain is not None or aware is not None:
+        options["noise_aware"] = aware if aware is not None else not plain
+    if plain and body.get("average") is None:
+        options["average"] = 1
+    if body.get("average") is not None:
+        options["average"] = _integer("average", body["average"])
+        if options["average"] < 1:
+            raise InputError(f"average: expected an integer >= 1, got {options['average']}")
+    for key in ("margin", "q_cutoff"):
+        if body.get(key) is not None:
+            options[key] = _number(key, body[key])
+    return first, eps, optional_str(body, "name"), options
+
+
+def trial_of(body: Mapping[str, Any]) -> int:
+    """The ``trial`` a step says it measured (required: a step for another trial is refused)."""
+    return _integer("trial", body["trial"])
+
+
+def measured_of(value: Any, n: int, d: int, dt: float) -> np.ndarray:
+    """A step's measured positions: rows, or path CSV text checked as ``trials step`` checks
+    its ``--measured`` file (axes, time step, length), naming ``measured``."""
+    if isinstance(value, str):
+        from primlib.io import parse_path_csv
+
+        t, y = parse_path_csv(value, "measured")
+        if y.shape[1] != d:
+            raise InputError(f"measured: expected measured positions on {d} axes, got {y.shape[1]}")
+        step = (t[-1] - t[0]) / (len(t) - 1)
+        if abs(step - dt) > _DT_RTOL * dt:
+            raise InputError(
+                f"measured: expected samples every dt = {dt:g} s, got dt = {step:.9g} s"
+            )
+        if len(t) != n:
+            raise InputError(
+                f"measured: expected a trial of {n} samples (T = {(n - 1) * dt:g} s), got "
+                f"{len(t)} (T = {t[-1]:.9g} s)"
+            )
+        return y
+    if isinstance(value, list):
+        try:
+            return np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError(f"measured: expected a list of rows of {d} numbers") from None
+    raise BadRequest(f"measured: expected a list of rows or CSV text, got {type(value).__name__}")

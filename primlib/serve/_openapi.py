@@ -57,7 +57,7 @@ def _body(props: dict[str, Any], required: list[str], csv: bool = False) -> dict
     }
     if csv:
         content["text/csv"] = {
-            "schema": {"type": "string", "description": "path CSV; options as query parameters"}
+            "schema": {"type": "string", "description": "the CSV file; fields as query parameters"}
         }
     return {"required": True, "content": content}
 
@@ -117,6 +117,72 @@ DESCRIPTIONS: dict[tuple[str, str], tuple[str, dict[str, Any] | None, str]] = {
         "200",
     ),
 }
+
+_SERIES_PROPS = {
+    "machine": {"type": "string"},
+    "path": _PATH,
+    "dt": {"type": "number", "description": "sample time of points (default the machine's)"},
+    "first": {"enum": ["warm", "inverse", "cold"], "description": "first input (default warm)"},
+    "eps": {"type": "number", "description": "match tolerance (default 3e-4 of extent)"},
+    "name": {"type": "string"},
+    "law": {"enum": ["p", "pd", "pid", "norm-optimal"]},
+    "plain": {"type": "boolean", "description": "learn from the last error only"},
+    "noise_aware": {"type": "boolean", "description": "the opposite of plain (default true)"},
+    "average": {"type": "integer", "minimum": 1, "description": "default 8, plain 1"},
+    "margin": {"type": "number", "description": "stop rule margin (default 0.2)"},
+    "q_cutoff": {"type": ["number", "null"], "description": "fixed Q cut-off, Hz"},
+}
+_STEP_PROPS = {
+    "trial": {"type": "integer", "description": "the pending trial this output was measured on"},
+    "measured": {
+        "description": "Measured positions, absolute: rows on the series' grid, or path CSV text.",
+        "oneOf": [_ROWS, {"type": "string"}],
+    },
+}
+DESCRIPTIONS.update(
+    {
+        ("GET", "/trials"): ("Trial series (?machine=NAME): state, steps, last rms.", None, "200"),
+        ("POST", "/trials"): (
+            "Start a trial series: its id and trial 0's input (CSV with Accept: text/csv).",
+            _body(_SERIES_PROPS, ["machine", "path"], csv=True),
+            "201",
+        ),
+        ("GET", "/trials/{id}"): (
+            "A series' trials, errors and the stop rule's verdict.",
+            None,
+            "200",
+        ),  # fmt: skip
+        ("GET", "/trials/{id}/input"): (
+            "The pending trial's input again (409 when finished).",
+            None,
+            "200",
+        ),
+        ("POST", "/trials/{id}/step"): (
+            "Record the pending trial's measured output; the next input. 409 when 'trial' is "
+            "not the pending one (another step came first) or the series is finished.",
+            _body(_STEP_PROPS, ["trial", "measured"], csv=True),
+            "200",
+        ),
+        ("POST", "/trials/{id}/finish"): (
+            "Store the converged input as a primitive (409 unless converged or force).",
+            {
+                "required": False,
+                "content": {
+                    "application/json": {
+                        "schema": {
+                            "type": "object",
+                            "properties": {
+                                "name": {"type": "string"},
+                                "force": {"type": "boolean"},
+                            },
+                        }
+                    }
+                },
+            },
+            "201",
+        ),
+    }
+)
 
 _ERROR = {
     "description": "Refused: {error: one sentence}",

@@ -1,4 +1,5 @@
-"""The endpoints: machines, primitives, match and warm start, health, version, metrics.
+"""The endpoints: machines, primitives, match and warm start, health, version, metrics
+(and the trial series' of :mod:`primlib.serve._trial_routes`).
 
 Each handler parses and checks its request (CPU work off the event loop, in a reader
 thread), then runs one library call through :class:`~primlib.serve._service.Service`:
@@ -19,6 +20,7 @@ from primlib.serve._http import (
     csv_text,
     json_response,
     need_write,
+    path_request,
     read_json,
     wants_csv,
 )
@@ -34,6 +36,7 @@ from primlib.serve._inputs import (
     signal_of,
     warm_options,
 )
+from primlib.serve._trial_routes import TRIAL_ROUTES
 
 __all__ = ["ROUTES", "endpoints"]
 
@@ -215,25 +218,6 @@ async def primitive_remove(request: Request) -> Response:
 
 
 # ---------------------------------------------------------------------------- match
-async def _path_request(request: Request, options: tuple[str, ...]) -> dict[str, Any]:
-    """The fields of a match or warm-start request: ``machine``, ``path`` and options.
-
-    A JSON body carries every field; a CSV body (``Content-Type: text/csv``) is the path
-    file and the other fields come as query parameters.
-    """
-    got = await read_json(request, csv_ok=True)
-    if isinstance(got, str):
-        body: dict[str, Any] = dict(request.query_params)
-        if "path" in body:
-            raise BadRequest("path: expected in the CSV body, got a query parameter too")
-        body["path"] = got
-    else:
-        body = got
-    body = fields(body, ("machine", "path"), ("dt", *options))
-    optional_str(body, "machine")
-    return body
-
-
 def _parsed(lib: Any, body: dict[str, Any], parse_options) -> tuple:
     """(trajectory, eps, options) for the request's machine, in the reader thread that then
     computes (one trip through the reader queue per request)."""
@@ -243,7 +227,7 @@ def _parsed(lib: Any, body: dict[str, Any], parse_options) -> tuple:
 
 
 async def match(request: Request) -> Response:
-    body = await _path_request(request, MATCH_FIELDS)
+    body = await path_request(request, MATCH_FIELDS)
 
     def run(lib: Any) -> dict[str, Any]:
         traj, eps, kw = _parsed(lib, body, match_options)
@@ -269,7 +253,7 @@ def warm_start_dict(ws: Any, duration: float) -> dict[str, Any]:
 
 
 async def warm_start(request: Request) -> Response:
-    body = await _path_request(request, WARM_FIELDS)
+    body = await path_request(request, WARM_FIELDS)
     csv = wants_csv(request)
 
     def run(lib: Any) -> Any:
@@ -303,6 +287,7 @@ ROUTES: list[tuple[str, str, Any, bool]] = [
     ("GET", "/primitives/{id}/signal", primitive_signal, False),
     ("POST", "/match", match, False),
     ("POST", "/warm-start", warm_start, False),
+    *TRIAL_ROUTES,
 ]
 
 
