@@ -49,7 +49,7 @@ class RemoteNotFoundError(NotFoundError):
         self.status = status
 
 
-def _nurbs(path: Any) -> dict[str, Any]:
+def nurbs_of(path: Any) -> dict[str, Any]:
     """A path as the server's NURBS definition (a CSV file name is read here, locally)."""
     from primlib.nurbs import Trajectory
 
@@ -165,6 +165,15 @@ class Client:
     def __repr__(self) -> str:
         return f"Client({self.url!r})"
 
+    @property
+    def trials(self) -> Any:
+        """The server's trial series: :mod:`primlib.trials`' functions as methods
+        (``client.trials.start(path, "xyz")`` for ``start(lib, path, "xyz")``; see
+        :class:`primlib.client.RemoteTrials`)."""
+        from primlib.client._trials import RemoteTrials
+
+        return RemoteTrials(self)
+
     def __enter__(self) -> Client:
         return self
 
@@ -269,7 +278,7 @@ class Client:
         u = np.asarray(u, dtype=float)
         if not np.isfinite(u).all():
             raise InputError("signal: expected finite numbers, got NaN or inf")
-        body = {"machine": machine, "path": _nurbs(path), "signal": u.tolist()}
+        body = {"machine": machine, "path": nurbs_of(path), "signal": u.tolist()}
         body.update({k: v for k, v in (("name", name), ("source", source)) if v is not None})
         return int(self.request("POST", "/primitives", body)["id"])
 
@@ -279,7 +288,7 @@ class Client:
 
     # ------------------------------------------------------------------ pipeline
     def _path_body(self, path: Any, machine: str, eps: float | None, kw: dict) -> dict:
-        body = {"machine": machine, "path": _nurbs(path), "eps": eps}
+        body = {"machine": machine, "path": nurbs_of(path), "eps": eps}
         if "time_scale" in kw:
             kw = {**kw, "time_scale": [float(x) for x in kw["time_scale"]]}
         body.update(kw)
