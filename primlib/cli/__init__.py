@@ -53,8 +53,8 @@ class _Group(click.Group):
     envvar="PRIMLIB_REMOTE",
     default=None,
     metavar="URL",
-    help="Run read commands (list, show, match, machine list) against a `primlib serve` "
-    "at URL instead of --db (token: $PRIMLIB_TOKEN).",
+    help="Run read commands (list, show, match, machine list, trials status/list/input) "
+    "against a `primlib serve` at URL instead of --db (token: $PRIMLIB_TOKEN).",
 )
 @click.version_option(package_name="primlib")
 @click.pass_context

@@ -42,7 +42,7 @@ def _remote(ctx: click.Context, allowed: bool) -> Any:
     if not allowed:
         raise click.UsageError(
             f"--remote: '{ctx.command_path}' works on a library file (--db); against a "
-            "server only list, show, match and machine list run"
+            "server only list, show, match, machine list and trials status, list and input run"
         )
     from primlib.client import Client
 

@@ -16,6 +16,7 @@ import click
 
 from primlib._errors import InputError
 from primlib.cli import main
+from primlib.cli._library import _remote
 from primlib.cli._output import TABLE_FORMATS, check_output
 
 if TYPE_CHECKING:  # numpy is imported where a command runs: `--help` stays fast
@@ -27,6 +28,7 @@ _LAW_CHOICES = ("p", "pd", "pid", "norm-optimal")
 
 
 def _db(ctx: click.Context) -> str:
+    _remote(ctx, False)  # with --remote only status, list and input run (on the server)
     return ctx.find_root().obj["db"]
 
 
@@ -203,37 +205,47 @@ def step_cmd(ctx: click.Context, series: int, measured: Path, out: Path | None, 
     click.echo(f"wrote trial {res.trial + 1}'s input to {out}")
 
 
+def _status_lines(d: dict) -> list[str]:
+    """``trials status``'s table from :meth:`SeriesStatus.to_dict`'s dict (local or remote)."""
+    where = ", ".join(f"{v:.6g}" for v in d["origin"])
+    law = d["options"]["law"] + ("" if d["options"].get("noise_aware") else " (plain)")
+    lines = [
+        f"trial series {d['series']} ({d['name'] or '-'}) on machine '{d['machine']}', "
+        f"{d['start']} start at ({where}), law {law}",
+        f"{'trial':>5}  {'rms':>12}  {'contour rms':>12}  {'noise floor':>12}  {'Q Hz':>8}",
+    ]
+    for t in d["trials"]:
+        if t["pending"]:
+            lines.append(f"{t['trial']:>5}  {'(pending)':>12}")
+            continue
+        lines.append(
+            f"{t['trial']:>5}  {t['rms']:>12.6g}  {_fmt(t['contour_rms']):>12}  "
+            f"{_fmt(t['noise_floor']):>12}  {_fmt(t['q_cutoff'], '.4g'):>8}"
+        )
+    tail = f" as primitive {d['primitive']}" if d["primitive"] is not None else ""
+    lines.append(f"{d['verdict']}{tail} (noise floor {_fmt(d['noise_floor'])})")
+    return lines
+
+
 @trials.command("status")
 @click.argument("series", type=int)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.pass_context
 def status_cmd(ctx: click.Context, series: int, as_json: bool) -> None:
     """Print the RMS tracking and contour error per trial and the stop rule's verdict."""
-    from primlib.pipeline import Library
-    from primlib.trials import status
+    client = _remote(ctx, True)
+    if client is not None:
+        d = client.trials.status(series)
+    else:
+        from primlib.pipeline import Library
+        from primlib.trials import status
 
-    with Library(_db(ctx), read_only=True) as lib:
-        st = status(lib, series)
+        with Library(_db(ctx), read_only=True) as lib:
+            d = status(lib, series).to_dict()
     if as_json:
-        click.echo(json.dumps(st.to_dict()))
+        click.echo(json.dumps(d))
         return
-    r = st.record
-    where = ", ".join(f"{v:.6g}" for v in r.origin)
-    click.echo(
-        f"trial series {r.id} ({r.name or '-'}) on machine '{r.machine}', {r.start} start at "
-        f"({where}), law {r.options['law']}" + ("" if r.options.get("noise_aware") else " (plain)")
-    )
-    click.echo(f"{'trial':>5}  {'rms':>12}  {'contour rms':>12}  {'noise floor':>12}  {'Q Hz':>8}")
-    for t in st.trials:
-        if t.pending:
-            click.echo(f"{t.trial:>5}  {'(pending)':>12}")
-            continue
-        click.echo(
-            f"{t.trial:>5}  {t.rms:>12.6g}  {_fmt(t.contour_rms):>12}  "
-            f"{_fmt(t.noise_floor):>12}  {_fmt(t.q_cutoff, '.4g'):>8}"
-        )
-    tail = f" as primitive {r.primitive}" if r.primitive is not None else ""
-    click.echo(f"{st.verdict}{tail} (noise floor {_fmt(st.noise_floor)})")
+    click.echo("\n".join(_status_lines(d)))
 
 
 @trials.command("finish")
@@ -262,8 +274,12 @@ def input_cmd(ctx: click.Context, series: int, out: Path | None) -> None:
     from primlib.trials import pending
 
     check_output("--out", out, TABLE_FORMATS)
-    with Library(_db(ctx), read_only=True) as lib:
-        trial, t, u = pending(lib, series)
+    client = _remote(ctx, True)
+    if client is not None:
+        trial, t, u = client.trials.pending(series)
+    else:
+        with Library(_db(ctx), read_only=True) as lib:
+            trial, t, u = pending(lib, series)
     out = out or _default_out(series, trial)
     _write_input(out, t, u)
     click.echo(f"wrote trial {trial}'s input to {out}")
@@ -274,16 +290,27 @@ def input_cmd(ctx: click.Context, series: int, out: Path | None) -> None:
 @click.pass_context
 def list_cmd(ctx: click.Context, machine_name: str | None) -> None:
     """List the trial series: id, machine, name, state, trials, last rms."""
-    from primlib.pipeline import Library
-    from primlib.store import TrialStore
+    client = _remote(ctx, True)
+    if client is not None:
+        rows = client.trials.list(machine_name)
+    else:
+        from primlib.pipeline import Library
+        from primlib.store import TrialStore
 
-    with Library(_db(ctx), read_only=True) as lib:
-        store = TrialStore(lib)
-        for sid in store.ids(machine_name):
-            r = store.series(sid)
-            done = [t for t in store.trials(sid) if not t.pending]
-            last = _fmt(done[-1].rms) if done else "-"
-            click.echo(f"{sid:>4}  {r.machine}  {r.name or '-'}  {r.state}  {r.steps}  {last}")
+        rows = []
+        with Library(_db(ctx), read_only=True) as lib:
+            store = TrialStore(lib)
+            for sid in store.ids(machine_name):
+                r = store.series(sid)
+                done = [t for t in store.trials(sid) if not t.pending]
+                last = done[-1].rms if done else None
+                rows.append({"series": sid, "machine": r.machine, "name": r.name,
+                             "state": r.state, "steps": r.steps, "last_rms": last})  # fmt: skip
+    for r in rows:
+        click.echo(
+            f"{r['series']:>4}  {r['machine']}  {r['name'] or '-'}  {r['state']}  {r['steps']}  "
+            f"{_fmt(r['last_rms'])}"
+        )
 
 
 @trials.command("run")
