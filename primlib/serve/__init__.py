@@ -4,9 +4,10 @@
 uvicorn, the optional extra ``primlib[serve]``) that owns the library file. Reads (lists,
 match, warm start, a trial series' status and input) run side by side in reader threads,
 each with its own connection; writes (machines, primitives, a trial series' start, step and
-finish) go one at a time through a single writer thread, so a client never sees "busy". Endpoints, status codes and the token file are described in ``docs/serve.md``
-and served as OpenAPI at ``/openapi.json``; :class:`primlib.client.Client` calls them with
-the library's method names.
+finish) go one at a time through a single writer thread, so a client never sees "busy".
+Endpoints, status codes and the token file are described in ``docs/serve.md`` and served as
+OpenAPI at ``/openapi.json``; :class:`primlib.client.Client` calls them with the library's
+method names.
 """
 
 from primlib.serve._app import DEFAULT_PORT, create_app, serve
