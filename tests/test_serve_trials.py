@@ -441,6 +441,11 @@ def test_cli_remote_trials_status_and_list(world, monkeypatch):
     assert any(
         ln.split()[:5] == [str(sid), "xyz", "cli", "running", "0"] for ln in r.output.splitlines()
     )
+    out = world["folder"] / f"series{sid}-input.csv"
+    r = CliRunner().invoke(main, ["--remote", url, "trials", "input", str(sid), "--out", str(out)])
+    assert r.exit_code == 0 and r.output == f"wrote trial 0's input to {out}\n", r.output
+    u = np.loadtxt(out, delimiter=",", skiprows=1)[:, 1:]
+    np.testing.assert_array_equal(u, np.array(_call(world, "GET", f"/trials/{sid}/input")[1]["u"]))
     r = CliRunner().invoke(main, ["--remote", url, "trials", "status", "99999"])
     assert r.exit_code == 2 and "no trial series with id 99999" in r.output
     r = CliRunner().invoke(main, ["--remote", url, "trials", "finish", str(sid)])
