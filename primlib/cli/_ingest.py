@@ -43,6 +43,19 @@ _DT_RTOL = 1e-6
 _INTERRUPTED = 130
 
 
+def _parse_origin(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]):
+    """``--origin X,Y[,Z]`` values as tuples of floats (the store checks the count)."""
+    out = []
+    for text in values:
+        try:
+            out.append(tuple(float(v) for v in text.split(",")))
+        except ValueError:
+            raise click.BadParameter(
+                f"expected comma-separated numbers X,Y[,Z], got {text!r}"
+            ) from None
+    return tuple(out)
+
+
 def _signal_for(path: Path) -> Path:
     # glyph-a.csv -> glyph-a.signal.csv beside it
     return path.with_name(f"{path.stem}.signal.csv")
@@ -173,7 +186,7 @@ def _write(ctx: click.Context, items, machine_name: str, wait: float, allow: boo
 def _report(ctx: click.Context, files, items, result: AddResult, machine_name: str) -> None:
     dup = set(result.duplicates)
     rows = zip(result.ids, files, items, strict=True)
-    for i, (pid, path, (trajectory, _, nm, _)) in enumerate(rows):
+    for i, (pid, path, (trajectory, _, nm, *_)) in enumerate(rows):
         if i in dup:
             click.echo(f"skipped {path}: identical to primitive {pid} (same path and signal)")
         else:
@@ -210,6 +223,15 @@ def _report(ctx: click.Context, files, items, result: AddResult, machine_name: s
 )
 @click.option("--name", help="Name of the primitive (one PATH only); default: the file's stem.")
 @click.option(
+    "--origin",
+    "origins",
+    multiple=True,
+    callback=_parse_origin,
+    metavar="X,Y[,Z]",
+    help="Where the primitive ran: the machine's absolute position at the path's start when "
+    "its signal was learned, one per PATH, in order (default: unknown).",
+)
+@click.option(
     "--allow-duplicates",
     is_flag=True,
     help="Store primitives identical to stored ones (same machine, path and signal) anyway.",
@@ -230,6 +252,7 @@ def ingest(
     learn: bool,
     iterations: int,
     name: str | None,
+    origins: tuple[tuple[float, ...], ...],
     allow_duplicates: bool,
     wait: float,
 ) -> None:
@@ -256,6 +279,10 @@ def ingest(
             f"got {len(signals)} --signal for {len(paths)} paths; give one per path, or none "
             "to read <stem>.signal.csv beside each"
         )
+    if origins and len(origins) != len(paths):
+        raise click.UsageError(
+            f"got {len(origins)} --origin for {len(paths)} paths; give one per path, or none"
+        )
     if name is not None and len(paths) > 1:
         raise click.UsageError(f"--name names one primitive, got {len(paths)} paths")
     from primlib.store import check_name
@@ -272,6 +299,10 @@ def ingest(
         ctx.exit(_INTERRUPTED)
     how = f" (learned by ILC, {iterations} iterations)" if learn else ""
     stems = [path.stem if name is None else name for path, _, _ in read]
-    items = [(traj, u, nm, f"{path}{how}") for (path, traj, u), nm in zip(read, stems, strict=True)]
+    where = origins or (None,) * len(read)
+    items = [
+        (traj, u, nm, f"{path}{how}", origin)
+        for (path, traj, u), nm, origin in zip(read, stems, where, strict=True)
+    ]
     result = _write(ctx, items, machine_name, wait, allow_duplicates)
     _report(ctx, [path for path, _, _ in read], items, result, machine_name)

@@ -272,6 +272,7 @@ def show(
         f"  nurbs      degree {traj.degree}, {len(traj.weights)} control points, "
         f"{'rational' if traj.rational else 'non-rational'}, extent {traj.extent:.6g}",
         f"  path       from {fmt(start)} to {fmt(end)}",
+        f"  origin     {'unknown' if p.origin is None else fmt(p.origin)} (where it ran)",
         "  signal     "
         + ", ".join(
             f"{a}: rms {r:.4g}, peak {k:.4g}" for a, r, k in zip(axes, rms, peak, strict=True)

@@ -29,7 +29,7 @@ __all__ = [
     "in_id_order",
 ]
 
-INFO_COLUMNS = "id, name, machine, duration, dt, n_samples, dim, source, added"
+INFO_COLUMNS = "id, name, machine, duration, dt, n_samples, dim, source, added, origin"
 INSERT_COLUMNS = [
     "id",
     "machine",
@@ -47,6 +47,7 @@ INSERT_COLUMNS = [
     "points",
     "signal",
     "content_hash",
+    "origin",
 ]
 
 
@@ -84,7 +85,7 @@ def offsets_of(counts: np.ndarray) -> np.ndarray:
 
 def info_from_row(row: Sequence[Any]) -> PrimitiveInfo:
     """A :class:`PrimitiveInfo` from one row of :data:`INFO_COLUMNS`."""
-    id_, name, machine, duration, dt, n, dim, source, added = row
+    id_, name, machine, duration, dt, n, dim, source, added, origin = row
     return PrimitiveInfo(
         id=int(id_),
         name=name,
@@ -95,6 +96,7 @@ def info_from_row(row: Sequence[Any]) -> PrimitiveInfo:
         dim=int(dim),
         source=source,
         added=added.replace(tzinfo=UTC),
+        origin=None if origin is None else tuple(float(x) for x in origin),
     )
 
 
@@ -142,6 +144,10 @@ def batch_table(
             "points": list_array(points, sample_offsets),
             "signal": list_array(signals, sample_offsets),
             "content_hash": pa.array([c["hash"] for c in checked], pa.string()),
+            "origin": pa.array(
+                [None if c["origin"] is None else c["origin"].tolist() for c in checked],
+                pa.list_(pa.float64()),
+            ),
         }
     )
 
@@ -162,6 +168,15 @@ def in_id_order(table: pa.Table) -> tuple[pa.Table, np.ndarray]:
     return table, ids
 
 
+def _origins(rows: list[list[float] | None], d: int) -> np.ndarray:
+    """(k, d) origins, NaN where a primitive's origin is unknown (NULL)."""
+    out = np.full((len(rows), d), np.nan)
+    for i, row in enumerate(rows):  # one short list per primitive, not per sample
+        if row is not None:
+            out[i] = row
+    return out
+
+
 def bank_from_table(
     table: pa.Table,
     machine: str,
@@ -170,7 +185,7 @@ def bank_from_table(
     load_signals: Callable[[np.ndarray], np.ndarray],
 ) -> Bank:
     """A read-only :class:`Bank` from the columns id, name, duration, n_samples, degree,
-    knots, ctrlpts, weights, points of one machine's rows (any order).
+    knots, ctrlpts, weights, points, origin of one machine's rows (any order).
 
     ``load_signals(ids)`` reads the signals of these ids, in this order, on first use.
     """
@@ -193,6 +208,7 @@ def bank_from_table(
         ctrlpts=flat(table.column("ctrlpts")).reshape(-1, d),
         weights=flat(table.column("weights")),
         ctrl_offsets=offsets_of(weights_arr.value_lengths().to_numpy(zero_copy_only=False)),
+        origins=_origins(table.column("origin").to_pylist(), d),
         load_signals=lambda: load_signals(ids),
     )
     for value in vars(bank).values():

@@ -7,7 +7,7 @@ its own transaction together with the bump of ``meta.schema_version`` and a row 
 and leaves the file at the previous version. Steps are SQL text or a callable taking the
 connection. Never edit a released step: append a new one.
 
-Layout (version 4):
+Layout (version 5):
 
 ``meta(key, value)``
     ``application = primlib`` marks a primlib library; ``schema_version``.
@@ -25,7 +25,9 @@ ctrlpts, weights, points, signal)``
     a scan) and comes from the sequence ``primitive_ids``, so a removed id is never reused.
     ``content_hash`` (version 3) identifies machine, path and signal
     (:func:`primlib.store._validate.content_hash`): the same primitive is not stored twice
-    unless asked to.
+    unless asked to. ``origin`` (version 5, nullable ``DOUBLE[]``, one coordinate per axis)
+    is the absolute machine position the primitive's path started from when its signal
+    was learned (where it ran); NULL where unknown, as for every row stored before.
 ``series(id, machine, name, created, state, start, options, notes, duration, dt, dim,
 n_samples, degree, knots, ctrlpts, weights, points, origin, steps, primitive, finished)``
     A trial series on a real stage (:mod:`primlib.store._trials`): the path (NURBS and
@@ -185,6 +187,11 @@ MIGRATIONS: list[Migration] = [
             PRIMARY KEY (series, trial)
         );
         """,
+    ),
+    (
+        5,
+        "primitives: origin, the absolute start position where the primitive ran",
+        "ALTER TABLE primitives ADD COLUMN origin DOUBLE[]",
     ),
 ]
 

@@ -265,6 +265,7 @@ class Store:
         machine: str,
         name: str | None = None,
         source: str | None = None,
+        origin: Any = None,
     ) -> int:
         """Store one primitive: a path and the input learned for it on ``machine``.
 
@@ -279,6 +280,9 @@ class Store:
             Name of a machine in the library.
         name, source : str, optional
             A name for the primitive (printable, one line, non-empty) and where it came from.
+        origin : array, shape (d,), optional
+            Where it ran: the absolute machine position the path started from when ``u``
+            was learned (finite, one coordinate per axis). None: unknown.
 
         Returns
         -------
@@ -292,10 +296,10 @@ class Store:
             Unknown machine.
         InputError
             Wrong dimension, dt or shape; NaN, inf or a value beyond
-            ``primlib.defaults.MAX_ABS_VALUE``; a path that does not move; a bad name.
-            Nothing is written.
+            ``primlib.defaults.MAX_ABS_VALUE``; a path that does not move; a bad name; an
+            origin without one finite coordinate per axis. Nothing is written.
         """
-        return self.add_batch([(path, u, name, source)], machine, single=True).ids[0]
+        return self.add_batch([(path, u, name, source, origin)], machine, single=True).ids[0]
 
     def add_many(self, items: Sequence[Sequence[Any]], machine: str) -> list[int]:
         """Store many primitives in ONE transaction: all of them, or (on any error) none.
@@ -305,8 +309,9 @@ class Store:
 
         Parameters
         ----------
-        items : sequence of (Trajectory, u, name, source)
-            ``u`` array, shape (n_i, d); ``name`` and ``source`` may be None or left off.
+        items : sequence of (Trajectory, u, name, source, origin)
+            ``u`` array, shape (n_i, d); ``name``, ``source`` and ``origin`` (the absolute
+            start position, shape (d,), as in :meth:`add`) may be None or left off.
         machine : str
             Name of a machine in the library.
 
@@ -337,7 +342,7 @@ class Store:
 
         Parameters
         ----------
-        items : sequence of (Trajectory, u, name, source)
+        items : sequence of (Trajectory, u, name, source, origin)
         machine : str
         allow_duplicates : bool, default False
             Store items identical to stored primitives (or to each other) anyway.
@@ -505,7 +510,7 @@ class Store:
             self._db()
             .sql(
                 "SELECT id, name, duration, n_samples, degree, knots, ctrlpts, weights, "
-                "points FROM primitives WHERE machine = $m",
+                "points, origin FROM primitives WHERE machine = $m",
                 params={"m": machine},
             )
             .to_arrow_table()

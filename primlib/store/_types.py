@@ -38,6 +38,9 @@ class PrimitiveInfo:
         Where it came from (a file name, ``"ilc"``...).
     added : datetime
         When it was stored, UTC (timezone-aware).
+    origin : tuple of float or None
+        The absolute machine position the path started from when its signal was learned
+        (where it ran), one coordinate per axis; None where unknown.
     """
 
     id: int
@@ -49,6 +52,11 @@ class PrimitiveInfo:
     dim: int
     source: str | None
     added: datetime
+    origin: tuple[float, ...] | None = field(default=None, kw_only=True)
+
+    def __post_init__(self) -> None:
+        if self.origin is not None:  # a JSON list (primlib.client) becomes a tuple
+            object.__setattr__(self, "origin", tuple(float(x) for x in self.origin))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (``added`` in ISO 8601)."""
@@ -62,6 +70,7 @@ class PrimitiveInfo:
             "dim": self.dim,
             "source": self.source,
             "added": self.added.isoformat(),
+            "origin": None if self.origin is None else list(self.origin),
         }
 
 
@@ -123,6 +132,9 @@ class Bank:
     weights : array, shape (M,)
     ctrl_offsets : array of int64, shape (k + 1,)
         Where each primitive's control points (and weights) start.
+    origins : array, shape (k, d)
+        Each primitive's absolute start position where it ran (its ``origin``), NaN where
+        unknown.
     """
 
     machine: str
@@ -139,6 +151,7 @@ class Bank:
     ctrlpts: np.ndarray
     weights: np.ndarray
     ctrl_offsets: np.ndarray
+    origins: np.ndarray = field(default=None, kw_only=True)  # type: ignore[assignment]
     load_signals: Callable[[], np.ndarray] | None = field(default=None, repr=False)
     _signals: list[np.ndarray] = field(default_factory=list, repr=False)
 
@@ -189,6 +202,10 @@ class Bank:
             weights=np.zeros(0),
             ctrl_offsets=zero,
         )
+
+    def __post_init__(self) -> None:
+        if self.origins is None:  # a bank built elsewhere knows no origins
+            object.__setattr__(self, "origins", np.full((len(self.ids), self.dim), np.nan))
 
     @property
     def signals(self) -> np.ndarray:

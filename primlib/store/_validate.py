@@ -20,6 +20,7 @@ __all__ = [
     "check_id",
     "check_name",
     "check_item",
+    "check_origin",
     "sample_points",
     "check_points",
     "content_hash",
@@ -101,24 +102,44 @@ def _grid(label: str, path: Any, machine: str, dt: float, axes: list[str]) -> in
     return n
 
 
+def check_origin(label: str, origin: Any, axes: Sequence[str]) -> np.ndarray | None:
+    """None, or the absolute start position as a float array (d,): one finite coordinate
+    per axis within +-MAX_ABS_VALUE; else an InputError naming ``label``."""
+    if origin is None:
+        return None
+    d = len(axes)
+    try:
+        arr = np.asarray(origin, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.shape != (d,):
+        raise InputError(
+            f"{label}: expected an origin of {d} coordinates (axes {', '.join(axes)}), "
+            f"got {origin!r:.60}"
+        )
+    _check_values(label, "origin", arr)
+    return arr
+
+
 def check_item(i: int | None, item: Any, machine: str, dt: float, axes: list[str]) -> dict:
-    """Check one (path, u, name, source) item; return what the insert needs.
+    """Check one (path, u, name, source, origin) item; return what the insert needs.
 
     Returns
     -------
     dict
-        ``n``, ``u`` (n, d), ``path``, ``label``, ``name``, ``source``, ``duration``,
-        ``degree``, ``knots``, ``ctrlpts`` (m, d), ``weights``.
+        ``n``, ``u`` (n, d), ``path``, ``label``, ``name``, ``source``, ``origin`` ((d,)
+        or None), ``duration``, ``degree``, ``knots``, ``ctrlpts`` (m, d), ``weights``.
     """
     d = len(axes)
-    if isinstance(item, (str, bytes)) or not isinstance(item, Sequence) or not 2 <= len(item) <= 4:
-        raise InputError(f"item {i}: expected (path, u, name, source), got {item!r:.60}")
+    if isinstance(item, (str, bytes)) or not isinstance(item, Sequence) or not 2 <= len(item) <= 5:
+        raise InputError(f"item {i}: expected (path, u, name, source, origin), got {item!r:.60}")
     path, u = item[0], item[1]
     name = item[2] if len(item) > 2 else None
     source = item[3] if len(item) > 3 else None
     label = _label(i, name)
     check_name(label, "name", name)
     check_name(label, "source", source)
+    origin = check_origin(label, item[4] if len(item) > 4 else None, axes)
     if not all(hasattr(path, a) for a in ("definition", "sample", "duration", "dim")):
         raise InputError(f"{label}: expected a Trajectory, got {type(path).__name__}")
     n = _grid(label, path, machine, dt, axes)
@@ -149,6 +170,7 @@ def check_item(i: int | None, item: Any, machine: str, dt: float, axes: list[str
         "label": label,
         "name": name,
         "source": source,
+        "origin": origin,
         "duration": float(path.duration),
         "degree": int(definition["degree"]),
         "knots": knots,

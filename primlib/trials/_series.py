@@ -404,9 +404,10 @@ def _source(rec, trial, floor: float | None) -> str:
 def finish(lib, series: int, *, name: str | None = None, force: bool = False) -> int:
     """Store a series' converged input as a primitive and close the series.
 
-    The pair stored is the last measured trial's input with the path; the primitive's
-    ``source`` names the series, its number of trials, final error, noise floor and the
-    absolute start position (all of which the series row keeps too).
+    The pair stored is the last measured trial's input with the path, and the series'
+    ``origin`` (the absolute start position) as the primitive's ``origin``; its ``source``
+    names the series, its number of trials, final error, noise floor and that position
+    (all of which the series row keeps too).
 
     Parameters
     ----------
@@ -452,6 +453,7 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
             machine=rec.machine,
             name=name or rec.name or f"series-{rec.id}",
             source=source,
+            origin=rec.origin,  # where it ran: the position the stage started each trial
         )
     _store(lib).mark_finished(series, pid)
     return int(pid)
