@@ -55,11 +55,13 @@ def test_every_departure_off_is_exactly_the_nominal_machine(machine, closed):
     assert rm.nominal() == base
 
 
+@pytest.mark.parametrize("resonance", [0.0, 20.0])  # the two-state and the general loop
 @pytest.mark.parametrize("closed", [False, True])
-def test_the_per_sample_loop_is_the_zoh_model_without_coulomb_and_ripple(closed):
+def test_the_per_sample_loop_is_the_zoh_model_without_coulomb_and_ripple(closed, resonance):
     # the loop (needed for friction and ripple) against the vectorised linear path on the
     # linear departures: viscous friction, resonance, disturbance, noise through the PID
-    rm = xyz({a: PID for a in "xyz"} if closed else None, viscous=0.05, resonance_hz=20.0)
+    fb = {a: PID for a in "xyz"} if closed else None
+    rm = xyz(fb, viscous=0.05, resonance_hz=resonance)
     rng = np.random.default_rng(1)
     u = rng.normal(size=(2000, 3))
     r = np.cumsum(rng.normal(size=u.shape), axis=0) * 0.01 if closed else None

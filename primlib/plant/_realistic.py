@@ -175,10 +175,60 @@ def _friction(v: float, v_free: float, vf: float, fr: tuple) -> tuple[float, flo
     return (v_free - v_new) / vf, v_new
 
 
+def _stepper(kern: tuple, start: float):
+    """The ``substeps`` of one sample for one loop axis: ``step(x, v, cmd) -> (x, v)``.
+
+    Plain floats in closures (numpy's call overhead on a 2-vector is ten times the
+    arithmetic); the usual rigid axis (two states, no resonance) is written out."""
+    Ad, Bd, Cp, CvAd, vf, _, fr, (c_r, w0, phi), nsub, m = kern
+    if len(Bd) != 2:
+
+        def step(x, v, cmd):
+            for _ in range(nsub):
+                w = cmd
+                if c_r != 0.0:
+                    p = start + sum(c * xi for c, xi in zip(Cp, x, strict=True))
+                    w -= c_r * math.sin(w0 * p + phi)
+                v_free = sum(c * xi for c, xi in zip(CvAd, x, strict=True)) + vf * w
+                fric, v_new = _friction(v, v_free, vf, fr)
+                w -= fric
+                x_new = [
+                    sum(a * xi for a, xi in zip(row, x, strict=True)) + b * w
+                    for row, b in zip(Ad, Bd, strict=True)
+                ]
+                if v == 0.0 and v_new == 0.0 and fric != 0.0:
+                    # stuck through the substep: the carriage is at rest, exactly (rounding
+                    # would otherwise let it creep by 1e-22 and flip the sign of v)
+                    x_new[:m] = x[:m]
+                x, v = x_new, v_new
+            return x, v
+
+        return step
+    (a00, a01), (a10, a11) = Ad
+    (b0, b1), (p0, p1), (q0, q1) = Bd, Cp, CvAd
+
+    def step2(x, v, cmd):
+        x0, x1 = x
+        for _ in range(nsub):
+            w = cmd
+            if c_r != 0.0:
+                w -= c_r * math.sin(w0 * (start + p0 * x0 + p1 * x1) + phi)
+            v_free = q0 * x0 + q1 * x1 + vf * w
+            fric, v_new = _friction(v, v_free, vf, fr)
+            if not (v == 0.0 and v_new == 0.0 and fric != 0.0):  # else stuck: at rest
+                w -= fric
+                x0, x1 = a00 * x0 + a01 * x1 + b0 * w, a10 * x0 + a11 * x1 + b1 * w
+            v = v_new
+        return (x0, x1), v
+
+    return step2
+
+
 def _run_axis(kern: tuple, u: list, r: list, noise: list, start: float, pid) -> list:
     """One loop axis over all samples (plain floats): the noise-free output, relative."""
-    Ad, Bd, Cp, CvAd, vf, Cy, fr, (c_r, w0, phi), nsub, m = kern
-    x = [0.0] * len(Bd)
+    Cy = kern[5]
+    step = _stepper(kern, start)
+    x = [0.0] * len(Cy)
     v = 0.0
     kp, ki, kd, tf, dt = pid if pid is not None else (0.0,) * 5
     integ = deriv = e_prev = 0.0
@@ -194,24 +244,7 @@ def _run_axis(kern: tuple, u: list, r: list, noise: list, start: float, pid) -> 
             deriv = (tf * deriv + kd * (e - e_prev)) / (tf + dt)
             e_prev = e
             cmd += kp * e + integ + deriv
-        for _ in range(nsub):
-            w = cmd
-            if c_r != 0.0:
-                w -= c_r * math.sin(
-                    w0 * (start + sum(c * xi for c, xi in zip(Cp, x, strict=True))) + phi
-                )
-            v_free = sum(c * xi for c, xi in zip(CvAd, x, strict=True)) + vf * w
-            fric, v_new = _friction(v, v_free, vf, fr)
-            w -= fric
-            x_new = [
-                sum(a * xi for a, xi in zip(row, x, strict=True)) + b * w
-                for row, b in zip(Ad, Bd, strict=True)
-            ]
-            if v == 0.0 and v_new == 0.0 and fric != 0.0:
-                # stuck through the substep: the carriage is at rest, exactly (rounding
-                # would otherwise let it creep by 1e-22 and flip the sign of v)
-                x_new[:m] = x[:m]
-            x, v = x_new, v_new
+        x, v = step(x, v, cmd)
     return out
 
 
