@@ -77,3 +77,30 @@ def test_clamp_keeps_the_duration_in_range_and_inside_the_primitive():
     assert c.x1 - c.x0 == pytest.approx(50.0) and c.x1 <= 399.0
     c = clamp(bank, Candidate(0, -3.0, 300.0, 0.0), 1.0, opts)
     assert c.x0 == 0.0 and c.x1 == pytest.approx(200.0)
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+def test_refining_seeds_together_takes_each_seeds_own_steps(rotation):
+    from primlib.match._interp import cubic_at
+    from primlib.match._refine_many import refine_many, rmsd_many
+
+    bank = _bank()
+    rng = np.random.default_rng(4)
+    p = bank.points_of(1)
+    q = cubic_at(p, 0, len(p), np.linspace(60.0, 260.0, 151))
+    q = q @ Rotation.from_euler("z", 25, degrees=True).as_matrix().T + 3.0
+    path = PathPiece(q, 150 * DT)
+    opts = SearchOptions(rotation=rotation, time_scale=(0.5, 2.0))
+    seeds = [Candidate(1, 60.0 + rng.uniform(-8, 8), 260.0 + rng.uniform(-8, 8), 0.0)
+             for _ in range(3)]  # fmt: skip
+    seeds += [Candidate(int(rng.integers(2)), rng.uniform(0, 150), rng.uniform(200, 399), 0.0)
+              for _ in range(4)]  # fmt: skip
+    seeds.append(Candidate(0, 390.0, 399.0, 0.0))  # too short: clamped into range first
+    together = refine_many(bank, seeds, path, 0.0, 1.0, opts, target=0.01)
+    alone = [refine(bank, c, path, 0.0, 1.0, opts, target=0.01) for c in seeds]
+    for t, s in zip(together, alone, strict=True):
+        assert t.prim == s.prim
+        assert t.x0 == pytest.approx(s.x0, abs=1e-6) and t.x1 == pytest.approx(s.x1, abs=1e-6)
+    r = rmsd_many(bank, together, path, 0.0, 1.0, 151, rotation)
+    single = [piece_rmsd(bank, c, path, 0.0, 1.0, 151, rotation).rmsd for c in together]
+    np.testing.assert_allclose(r, single, rtol=1e-9, atol=1e-12)

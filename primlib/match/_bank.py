@@ -11,6 +11,7 @@ import numpy as np
 from primlib._errors import NoMatchError
 from primlib.defaults import MAX_ABS_VALUE
 from primlib.match._arc_index import ArcIndex
+from primlib.match._reject import Envelope
 
 if TYPE_CHECKING:
     from primlib.store import Bank
@@ -88,6 +89,7 @@ class BankIndex:
         self._arc: ArcIndex | None = None
         self._fine: dict[int, ArcIndex] = {}
         self._vmax: np.ndarray | None = None
+        self._envelope: Envelope | None = None
         self.index_seconds = 0.0
 
     @property
@@ -152,6 +154,12 @@ class BankIndex:
             step[self.offsets[1:-1] - 1] = 0.0
             self._vmax = np.maximum.reduceat(np.append(step, 0.0), self.offsets[:-1])
         return self._vmax
+
+    def envelope(self) -> Envelope:
+        """Per-primitive bounding balls and boxes (:mod:`._reject`), built once."""
+        if self._envelope is None:
+            self._envelope = Envelope.of(self.points, self.offsets, self.max_step())
+        return self._envelope
 
     def __repr__(self) -> str:
         return f"BankIndex({self.machine!r}, {self.k} primitives, {len(self.skipped)} skipped)"

@@ -38,6 +38,8 @@ from primlib.match._index_search import IndexSearch
 from primlib.match._kabsch import ROTATION_MODES
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._refine import clamp, piece_rmsd, refine
+from primlib.match._refine_many import refine_many, rmsd_many
+from primlib.match._reject import rejects
 from primlib.match._types import Segment
 
 if TYPE_CHECKING:
@@ -115,18 +117,28 @@ class _Segmenter:
         self.eps = eps
         self.opts = opts
         self.probes = 0
+        self.rejected = 0
 
-    def _try(self, a: float, b: float, seed: Candidate, kc: int) -> _Found | None:
+    def _try(self, a: float, b: float, seeds: list[Candidate], kc: int) -> _Found | None:
+        """The first seed, in order, within eps of [a, b] as it comes or once refined.
+
+        Every seed's exact RMSD is computed at once; the seeds before the first that already
+        matches are refined together (:func:`._refine_many.refine_many`), so the answer is
+        the one trying them one by one would give.
+        """
         bank, path, opts, eps = self.bank, self.path, self.opts, self.eps
-        seed = clamp(bank, seed, (b - a) * path.duration, opts)
-        r0 = piece_rmsd(bank, seed, path, a, b, kc, opts.rotation).rmsd
-        if r0 < eps:
-            return _Found(seed, r0, False)
-        ref = refine(bank, seed, path, a, b, opts, target=0.5 * eps)
-        r1 = piece_rmsd(bank, ref, path, a, b, kc, opts.rotation).rmsd
-        if r1 < eps:
-            return _Found(ref, r1, True)
-        return None
+        dur = (b - a) * path.duration
+        shortest = opts.time_scale[0] * dur / bank.dt * (1 - 1e-9)
+        # a primitive too short for the time-scale range is clamped below it: not a match
+        cands = [c for c in (clamp(bank, s, dur, opts) for s in seeds) if c.x1 - c.x0 >= shortest]
+        r0 = rmsd_many(bank, cands, path, a, b, kc, opts.rotation)
+        hit = int(np.argmax(r0 < eps)) if np.any(r0 < eps) else len(cands)
+        refined = refine_many(bank, cands[:hit], path, a, b, opts, target=0.5 * eps)
+        r1 = rmsd_many(bank, refined, path, a, b, kc, opts.rotation)
+        for c, r in zip(refined, r1, strict=True):
+            if r < eps:
+                return _Found(c, float(r), True)
+        return _Found(cands[hit], float(r0[hit]), False) if hit < len(cands) else None
 
     def probe(self, a: float, b: float, hint=None) -> _Found | None:
         """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?
@@ -139,17 +151,19 @@ class _Segmenter:
         if (b - a) * (self.path.n - 1) < _MIN_SAMPLES - 1 - 1e-9:
             return None
         kc = self.path.confirm_points(a, b)
+        q = self.path.at(np.linspace(a, b, kc))
+        steps = (b - a) * self.path.duration / self.bank.dt
+        env, low = self.bank.envelope(), self.opts.time_scale[0]
+        if rejects(env, q, steps, low, self.opts.rotation, self.eps):
+            self.rejected += 1  # no primitive can be within eps: the exact check would say so
+            return None
         if hint is not None:
             cand, b_old = hint
             x1 = cand.x0 + (cand.x1 - cand.x0) * (b - a) / (b_old - a)
-            found = self._try(a, b, Candidate(cand.prim, cand.x0, x1, 0.0), kc)
+            found = self._try(a, b, [Candidate(cand.prim, cand.x0, x1, 0.0)], kc)
             if found is not None:
                 return found
-        for seed in self.seeder.seeds(self.path, a, b, self.eps):
-            found = self._try(a, b, seed, kc)
-            if found is not None:
-                return found
-        return None
+        return self._try(a, b, self.seeder.seeds(self.path, a, b, self.eps), kc)
 
     def longest_prefix(self, ia: int, sig: int) -> tuple[int, _Found] | None:
         """Steps 1–5 from sample ia on the sample grid (halving with rounding up still
@@ -270,6 +284,7 @@ def segment_with(
     info = {
         "search": getattr(seeder, "name", "index"),
         "probes": seg.probes,
+        "rejected": seg.rejected,
         "windows": stats.windows,
         "bounded": stats.bounded,
         "scored": stats.scored,

@@ -1,0 +1,171 @@
+"""The refinement of :mod:`._refine` for several seeds at once (one probe's seeds), in
+lockstep: every evaluation gathers, superposes and linearises all the seeds still running
+in one set of array operations, so a failing probe costs one refinement's Python overhead
+instead of one per seed. Each seed follows exactly the steps :func:`._refine.refine` takes
+for it alone (same damping, budget and stopping rules); only round-off differs.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from primlib.match._interp import cubic_at
+from primlib.match._kabsch import _rotation_2d, kabsch
+from primlib.match._options import Candidate, PathPiece, SearchOptions
+from primlib.match._refine import _AMAT, _BUDGET, clamp, duration_range, solve_box_qp2
+
+if TYPE_CHECKING:
+    from primlib.match._bank import BankIndex
+
+__all__ = ["refine_many", "rmsd_many"]
+
+
+def rmsd_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
+              k: int, rotation: str) -> np.ndarray:  # fmt: skip
+    """Kabsch RMSD of each candidate against the path piece [a, b], all at k uniform times
+    (what :func:`._refine.piece_rmsd` gives for each), shape (m,)."""
+    if not cands:
+        return np.zeros(0)
+    prim = np.array([c.prim for c in cands])
+    x = np.linspace([c.x0 for c in cands], [c.x1 for c in cands], k, axis=1)
+    p = _gather(bank, prim, x)
+    q = path.at(np.linspace(a, b, k))
+    return kabsch(p, np.broadcast_to(q, p.shape), rotation=rotation).rmsd
+
+
+def _gather(bank: BankIndex, prim: np.ndarray, x: np.ndarray, derivative: bool = False):
+    """Primitives ``prim`` (m,) at fractional sample indices x (m, k): (m, k, d) arrays."""
+    m, k = x.shape
+    start = np.repeat(bank.offsets[prim], k)
+    count = np.repeat(bank.offsets[prim + 1] - bank.offsets[prim], k)
+    out = cubic_at(bank.points, start, count, x.ravel(), derivative=derivative)
+    if derivative:
+        return out[0].reshape(m, k, -1), out[1].reshape(m, k, -1)
+    return out.reshape(m, k, -1)
+
+
+class _Residuals:
+    """:class:`._refine._Residual` for m seeds: cost (m,), residual and R·dp (m, k, d)."""
+
+    def __init__(self, bank: BankIndex, prim: np.ndarray, q: np.ndarray, rotation: str):
+        self.bank, self.prim, self.rotation = bank, prim, rotation
+        self.qc = q - q.mean(axis=0)
+        self.s = np.linspace(0.0, 1.0, q.shape[0])
+
+    def rotations(self, h: np.ndarray) -> np.ndarray:
+        m, d, _ = h.shape
+        if self.rotation == "full":
+            u, _, vt = np.linalg.svd(h)
+            v = vt.transpose(0, 2, 1).copy()
+            v[:, :, -1] *= np.where(np.linalg.det(u @ vt) > 0, 1.0, -1.0)[:, None]
+            return v @ u.transpose(0, 2, 1)
+        r = np.tile(np.eye(d), (m, 1, 1))
+        if self.rotation == "z":
+            r[:, :2, :2] = _rotation_2d(h[:, 0, 0] + h[:, 1, 1], h[:, 0, 1] - h[:, 1, 0])
+        return r
+
+    def __call__(self, rows: np.ndarray, z: np.ndarray):
+        x = z[:, :1] + (z[:, 1:] - z[:, :1]) * self.s
+        p, dp = _gather(self.bank, self.prim[rows], x, derivative=True)
+        pc = p - p.mean(axis=1, keepdims=True)
+        r = self.rotations(np.einsum("mka,kb->mab", pc, self.qc))
+        res = self.qc - pc @ r.transpose(0, 2, 1)
+        return np.einsum("mka,mka->m", res, res), res, dp @ r.transpose(0, 2, 1)
+
+    def normal_equations(self, res: np.ndarray, dpr: np.ndarray):
+        j1 = dpr * self.s[:, None]
+        j0 = dpr - j1
+        m = res.shape[0]
+        jac = np.stack([(j0 - j0.mean(axis=1, keepdims=True)).reshape(m, -1),
+                        (j1 - j1.mean(axis=1, keepdims=True)).reshape(m, -1)], axis=2)  # fmt: skip
+        return jac.transpose(0, 2, 1) @ jac, np.einsum("mna,mn->ma", jac, res.reshape(m, -1))
+
+
+def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
+                opts: SearchOptions, target: float = 0.0) -> list[Candidate]:  # fmt: skip
+    """:func:`._refine.refine` of every candidate, in lockstep (module notes)."""
+    dur = (b - a) * path.duration
+    out = list(cands)
+    rows, z, cvec = [], [], []
+    for i, c in enumerate(cands):
+        n_p = int(bank.offsets[c.prim + 1] - bank.offsets[c.prim])
+        lo, hi = duration_range(n_p, dur / bank.dt, opts)
+        if hi < lo:
+            continue
+        c0 = clamp(bank, c, dur, opts)
+        rows.append(i)
+        z.append([c0.x0, c0.x1])
+        cvec.append([0.0, n_p - 1.0, -lo, hi])
+    if not rows:
+        return out
+    k = opts.refine_points
+    prim = np.array([cands[i].prim for i in rows])
+    resid = _Residuals(bank, prim, path.at(np.linspace(a, b, k)), opts.rotation)
+    zf = _lockstep(resid, np.array(z), np.array(cvec), target * target * k)
+    for j, i in enumerate(rows):
+        out[i] = Candidate(cands[i].prim, float(zf[j, 0]), float(zf[j, 1]), cands[i].score)
+    return out
+
+
+def _steps(jtj, g, lam, z, cvec):
+    """Damped Gauss–Newton steps under A z ≤ c: the free 2×2 solution where feasible, the
+    box QP of :func:`._refine.solve_box_qp2` elsewhere."""
+    dg = jtj[:, [0, 1], [0, 1]]
+    h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * np.eye(2)
+    det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
+    free = (
+        np.stack(
+            [
+                h[:, 1, 1] * g[:, 0] - h[:, 0, 1] * g[:, 1],
+                h[:, 0, 0] * g[:, 1] - h[:, 1, 0] * g[:, 0],
+            ],
+            axis=1,
+        )
+        / np.where(det > 0, det, 1.0)[:, None]
+    )
+    slack = cvec - z @ _AMAT.T
+    ok = np.all(free @ _AMAT.T <= slack + 1e-9 * (1.0 + np.abs(cvec)), axis=1) & (det > 0)
+    for i in np.flatnonzero(~ok):
+        free[i] = solve_box_qp2(h[i], g[i], z[i], _AMAT, cvec[i])
+    return free
+
+
+def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float) -> np.ndarray:
+    """:func:`._refine._gauss_newton` for every row of z at once."""
+    m = z.shape[0]
+    rows = np.arange(m)
+    cost, res, dpr = resid(rows, z)
+    lam, budget = np.zeros(m), np.full(m, _BUDGET)
+    run = cost >= stop
+    jtj, g = resid.normal_equations(res, dpr)
+    while np.any(run):
+        act = np.flatnonzero(run)
+        step = _steps(jtj[act], g[act], lam[act], z[act], cvec[act])
+        still = np.any(step != 0.0, axis=1)
+        run[act[~still]] = False
+        act, step = act[still], step[still]
+        if act.size == 0:
+            break
+        nz = z[act] + step
+        ncost, nres, ndpr = resid(act, nz)
+        budget[act] -= 1
+        better = ncost < cost[act]
+        acc, rej = act[better], act[~better]
+        moved = np.abs(step[better]).sum(axis=1)
+        gain = cost[acc] - ncost[better]
+        z[acc], cost[acc], res[acc], dpr[acc] = (
+            nz[better],
+            ncost[better],
+            nres[better],
+            ndpr[better],
+        )
+        lam[acc] = np.where(lam[acc] > 1e-6, lam[acc] / 10.0, 0.0)
+        lam[rej] = np.maximum(lam[rej] * 10.0, 1e-4)
+        run[rej[lam[rej] > 1e8]] = False
+        run[acc[(moved < 1e-6) | (gain < 1e-12 * cost[acc]) | (cost[acc] < stop)]] = False
+        run[budget <= 0] = False
+        if acc.size:
+            jtj[acc], g[acc] = resid.normal_equations(res[acc], dpr[acc])
+    return z

@@ -1,0 +1,82 @@
+"""A lower bound on every primitive's RMSD against a piece of the path at once, before any
+window is scored: the probes a long piece of a path the library does not hold costs nothing.
+
+Any piece P of primitive j, sampled anywhere on its interpolant, lies in a ball of radius
+R_j about the centre c_j of the primitive's bounding box (the samples' farthest distance
+from c_j, plus the Catmull-Rom overshoot: a value between samples i and i + 1 is the chord
+point plus Σ c_m (p_m − p_i) with Σ|c_m|·|p_m − p_i| < 0.3 of the largest sample step;
+0.5 is used). Its radius of gyration g(P) (RMS distance from its centroid, which minimises
+the RMS distance to any point) is then at most R_j. The Kabsch RMSD of eq. (1) satisfies
+√K·rmsd = ‖Q̃ − R P̃‖ ≥ ‖Q̃‖ − ‖P̃‖ (triangle inequality, R orthogonal), so
+
+    rmsd ≥ g(Q) − R_j                                              (any rotation)
+
+and axis by axis for the restricted families: with R = I the error splits per axis,
+rmsd² ≥ Σ_a (g_a(Q) − h_ja)₊² (h_ja the bounding box's half-width plus the same margin);
+a turn about z keeps the xy norm and the z axis: rmsd² ≥ (g_xy(Q) − R_xy,j)₊² +
+(g_z(Q) − h_jz)₊². A primitive too short for the time-scale range (its duration below
+low × the piece's) cannot match at all. The probe fails when every primitive's bound is
+at or above ε: exactly what the exact check would decide, only sooner.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Envelope", "lower_bounds", "rejects"]
+
+_OVERSHOOT = 0.5  # of the largest sample step (Catmull-Rom: < 0.3)
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """Per primitive: ball radius ``radius`` (k,), half-widths ``half`` (k, d), the xy
+    radius ``radius_xy`` (k,) (3-D only, else zeros), and ``last`` = samples − 1 (k,)."""
+
+    radius: np.ndarray
+    half: np.ndarray
+    radius_xy: np.ndarray
+    last: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, offsets: np.ndarray, max_step: np.ndarray) -> Envelope:
+        starts = offsets[:-1]
+        lo = np.minimum.reduceat(points, starts, axis=0)
+        hi = np.maximum.reduceat(points, starts, axis=0)
+        rows = np.repeat(np.arange(len(starts)), np.diff(offsets))
+        centre = 0.5 * (lo + hi)
+        dev = points - centre[rows]
+        margin = _OVERSHOOT * max_step
+        far = np.maximum.reduceat(np.linalg.norm(dev, axis=1), starts)
+        if points.shape[1] == 3:
+            far_xy = np.maximum.reduceat(np.linalg.norm(dev[:, :2], axis=1), starts) + margin
+        else:
+            far_xy = np.zeros(len(starts))
+        half = 0.5 * (hi - lo) + margin[:, None]
+        return cls(far + margin, half, far_xy, np.diff(offsets) - 1.0)
+
+
+def lower_bounds(env: Envelope, q: np.ndarray, rotation: str) -> np.ndarray:
+    """Lower bound of the Kabsch RMSD of any piece of each primitive against ``q`` (K, d)
+    in the rotation family ``rotation``, shape (k,) (module notes)."""
+    qc = q - q.mean(axis=0)
+    g_axis = np.sqrt(np.mean(qc * qc, axis=0))
+    if rotation == "full":
+        return np.maximum(float(np.sqrt(np.sum(g_axis**2))) - env.radius, 0.0)
+    if rotation == "none":
+        return np.sqrt(np.sum(np.maximum(g_axis - env.half, 0.0) ** 2, axis=1))
+    g_xy = float(np.hypot(g_axis[0], g_axis[1]))
+    return np.hypot(
+        np.maximum(g_xy - env.radius_xy, 0.0), np.maximum(g_axis[2] - env.half[:, 2], 0.0)
+    )
+
+
+def rejects(env: Envelope, q: np.ndarray, samples: float, low: float, rotation: str,
+            eps: float) -> bool:  # fmt: skip
+    """True when no primitive can be within ``eps`` of the piece ``q`` (K, d), which lasts
+    ``samples`` sample steps, at time scales >= ``low`` (module notes)."""
+    lb = lower_bounds(env, q, rotation)
+    possible = (env.last >= low * samples * (1.0 - 1e-9)) & (lb < eps * (1.0 + 1e-9))
+    return not bool(np.any(possible))
