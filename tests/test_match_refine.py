@@ -104,3 +104,23 @@ def test_refining_seeds_together_takes_each_seeds_own_steps(rotation):
     r = rmsd_many(bank, together, path, 0.0, 1.0, 151, rotation)
     single = [piece_rmsd(bank, c, path, 0.0, 1.0, 151, rotation).rmsd for c in together]
     np.testing.assert_allclose(r, single, rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_box_qp_of_many_problems_matches_the_single_solver(seed):
+    from primlib.match._refine_many import _box_qp_many
+
+    rng = np.random.default_rng(seed)
+    m = 16
+    a = rng.normal(size=(m, 2, 2))
+    h = a @ a.transpose(0, 2, 1) + 0.1 * np.eye(2)
+    g = rng.normal(size=(m, 2)) * 30
+    z = np.c_[rng.uniform(0, 50, m), np.zeros(m)]
+    z[:, 1] = z[:, 0] + rng.uniform(5, 20, m)
+    lo = rng.uniform(1, 5, m)
+    c = np.c_[np.zeros(m), np.full(m, 100.0), -lo, np.where(rng.random(m) < 0.3, lo, 30.0)]
+    slack = c - z @ _AMAT.T
+    many = _box_qp_many(h, g, slack, 1e-9 * (1 + np.abs(c)))
+    one = np.array([solve_box_qp2(h[i], g[i], z[i], _AMAT, c[i]) for i in range(m)])
+    np.testing.assert_allclose(many, one, rtol=1e-9, atol=1e-9)

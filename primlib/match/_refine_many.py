@@ -14,7 +14,7 @@ import numpy as np
 from primlib.match._interp import cubic_at
 from primlib.match._kabsch import _rotation_2d, kabsch
 from primlib.match._options import Candidate, PathPiece, SearchOptions
-from primlib.match._refine import _AMAT, _BUDGET, clamp, duration_range, solve_box_qp2
+from primlib.match._refine import _AMAT, _BUDGET, clamp, duration_range
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
@@ -127,9 +127,62 @@ def _steps(jtj, g, lam, z, cvec):
     )
     slack = cvec - z @ _AMAT.T
     ok = np.all(free @ _AMAT.T <= slack + 1e-9 * (1.0 + np.abs(cvec)), axis=1) & (det > 0)
-    for i in np.flatnonzero(~ok):
-        free[i] = solve_box_qp2(h[i], g[i], z[i], _AMAT, cvec[i])
+    bad = np.flatnonzero(~ok)
+    if bad.size:
+        free[bad] = _box_qp_many(h[bad], g[bad], slack[bad], 1e-9 * (1.0 + np.abs(cvec[bad])))
     return free
+
+
+def _qp_layout():
+    """The constraint lines' normals and the vertices' inverse matrices (constants of
+    ``_AMAT``), and the candidates' order of :func:`._refine.solve_box_qp2` in the stack
+    [zero, free, lines 0-3, vertices]."""
+    normals = np.stack([[-a[1], a[0]] for a in _AMAT])
+    pairs, inverses, order = [], [], [0, 1]
+    for i in range(len(_AMAT)):
+        order.append(2 + i)
+        for j in range(i + 1, len(_AMAT)):
+            pair = _AMAT[[i, j]]
+            if abs(np.linalg.det(pair)) > 1e-12:
+                order.append(2 + len(_AMAT) + len(pairs))
+                pairs.append((i, j))
+                inverses.append(np.linalg.inv(pair))
+    return normals, np.array(pairs), np.stack(inverses), np.array(order)
+
+
+_NORMALS, _PAIRS, _INVERSES, _ORDER = _qp_layout()
+
+
+def _box_qp_many(h: np.ndarray, g: np.ndarray, slack: np.ndarray, tol: np.ndarray):
+    """:func:`._refine.solve_box_qp2` for m problems: the same candidates (the free
+    minimiser, each constraint line's minimiser, each vertex of two constraints) in the same
+    order, the first best feasible one kept (zero if none improves)."""
+    m = h.shape[0]
+    det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
+    free = (
+        np.stack(
+            [
+                h[:, 1, 1] * g[:, 0] - h[:, 0, 1] * g[:, 1],
+                h[:, 0, 0] * g[:, 1] - h[:, 1, 0] * g[:, 0],
+            ],
+            axis=1,
+        )
+        / np.where(det > 0, det, 1.0)[:, None]
+    )
+    # on line l (a_l·δ = slack_l): δ = δ_p + t·n_l, t minimising the quadratic along it
+    dp = _AMAT[None] * (slack / np.einsum("la,la->l", _AMAT, _AMAT))[:, :, None]
+    den = np.einsum("la,mab,lb->ml", _NORMALS, h, _NORMALS)
+    num = np.einsum("mlb,lb->ml", g[:, None, :] - np.einsum("mab,mlb->mla", h, dp), _NORMALS)
+    t = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    lines = dp + t[:, :, None] * _NORMALS[None]
+    rhs = np.stack([slack[:, _PAIRS[:, 0]], slack[:, _PAIRS[:, 1]]], axis=2)
+    verts = np.einsum("pab,mpb->mpa", _INVERSES, rhs)
+    c = np.concatenate([np.zeros((m, 1, 2)), free[:, None], lines, verts], axis=1)[:, _ORDER]
+    f = 0.5 * np.einsum("mna,mab,mnb->mn", c, h, c) - np.einsum("mna,ma->mn", c, g)
+    feasible = np.all(c @ _AMAT.T <= (slack + tol)[:, None, :], axis=2)
+    f = np.where(feasible, f, np.inf)
+    f[:, 0] = 0.0
+    return c[np.arange(m), np.argmin(f, axis=1)]
 
 
 def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float) -> np.ndarray:
