@@ -1,0 +1,158 @@
+"""Benchmark of matching paths the library does not hold (issue 13): smooth random 3-D paths
+(clamped cubic B-splines through a random walk of control points, ~one per second) against
+the 14 bundled primitives (and, with ``--big``, 1,000 random primitives), with the default
+search, ``rotation="none"`` and ``time_scale=(1, 1)``.
+
+Each case is timed as a first call (a fresh ``BankIndex``: the arc-length index is built
+inside the call) on ``--paths`` paths: median and worst, segments, fraction matched. The
+baseline is the same measurement run, in the same session, by the code of git revision
+``--baseline`` (extracted with ``git archive`` into a temporary folder, run in a
+subprocess): ratio = baseline time / this tree's time. Both must cut the same segments
+(asserted: the changes are meant to be exact). Goals (issue 13): 2,400 samples against the
+bundled library <= 1 s, against 1,000 primitives <= 2 s; ``rotation none`` and time scale
+1-1 never slower than the default; 2,400 -> 24,000 samples x12 or less (``--long``).
+
+Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400] [--big] [--long]
+[--baseline REV | --no-baseline]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = {"default": {}, "rotation none": {"rotation": "none"}, "time scale 1-1": {
+    "time_scale": (1.0, 1.0)}}  # fmt: skip
+BASELINE = "3d2aff9"  # main before the lockstep refinement and the up-front rejection
+
+
+def _library(kind: str):
+    """Bank of the bundled library or of 1,000 random primitives (2,000 samples each)."""
+    import numpy as np
+
+    from primlib.nurbs import Trajectory
+    from primlib.plant import Machine
+    from primlib.store import Bank
+
+    machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    if kind == "bundled":
+        pieces = []
+        for f in sorted((ROOT / "data" / "library").glob("*.csv")):
+            if not f.name.endswith(".signal.csv"):
+                pieces.append(Trajectory.from_csv(f).sample(machine.dt))
+        return Bank.from_samples(pieces, machine.dt), machine.dt
+    rng = np.random.default_rng(0)
+    pieces = [_walk(rng, 2000, machine.dt, 24).sample(machine.dt) for _ in range(1000)]
+    return Bank.from_samples(pieces, machine.dt), machine.dt
+
+
+def _walk(rng, n: int, dt: float, m: int):
+    import numpy as np
+
+    from primlib.nurbs import Trajectory
+
+    ctrl = np.cumsum(rng.normal(size=(m, 3)) * 12.0, axis=0)
+    knots = np.concatenate([np.zeros(3), np.linspace(0.0, 1.0, m - 2), np.ones(3)])
+    return Trajectory.from_definition(3, knots, ctrl, None, (n - 1) * dt)
+
+
+def worker(spec: dict) -> dict:
+    """Time every case of ``spec`` with the primlib importable here; JSON-able results."""
+    import numpy as np
+
+    from primlib.match import BankIndex, default_eps, segment_path
+
+    bank, dt = _library(spec["library"])
+    out = {}
+    for label in spec["cases"]:
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in CASES[label].items()}
+        times, segs, frac = [], [], []
+        for seed in range(spec["paths"]):
+            n = spec["samples"]
+            path = _walk(np.random.default_rng(100 + seed), n, dt, max(8, n // 200))
+            pts = path.at(np.linspace(0.0, 1.0, n))
+            index = BankIndex(bank)  # first call: the index is built inside
+            t0 = time.perf_counter()
+            s, _ = segment_path(index, pts, dt, default_eps(path), **kw)
+            times.append(time.perf_counter() - t0)
+            segs.append([(round(x.end, 9), x.primitive) for x in s])
+            frac.append(sum(x.end - x.start for x in s if x.primitive is not None))
+        out[label] = {"times": times, "segments": segs, "fraction": frac}
+    return out
+
+
+def _run(tree: Path, spec: dict) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    res = subprocess.run([sys.executable, __file__, "--worker", json.dumps(spec)], env=env,
+                         capture_output=True, text=True, check=True)  # fmt: skip
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def _baseline_tree(rev: str, tmp: str) -> Path:
+    tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "primlib"],
+                         capture_output=True, check=True).stdout  # fmt: skip
+    subprocess.run(["tar", "-x", "-C", tmp], input=tar, check=True)
+    return Path(tmp)
+
+
+def _report(spec: dict, new: dict, old: dict | None) -> None:
+    print(f"\n{spec['library']} library, {spec['samples']:,} samples, {spec['paths']} paths "
+          "(first call, seconds)")  # fmt: skip
+    print("| case | median | worst | segments (median) | matched | baseline median | ratio |")
+    print("|---|---|---|---|---|---|---|")
+    for label in spec["cases"]:
+        r = new[label]
+        med = statistics.median(r["times"])
+        base, ratio = "-", "-"
+        if old is not None:
+            b = statistics.median(old[label]["times"])
+            base, ratio = f"{b:.2f}", f"{b / med:.1f}x"
+            same = r["segments"] == old[label]["segments"]
+            assert same, f"{label}: the segmentation differs from the baseline's"
+        nseg = statistics.median(len(s) for s in r["segments"])
+        print(f"| {label} | {med:.2f} | {max(r['times']):.2f} | {nseg:g} | "
+              f"{100 * statistics.median(r['fraction']):.0f} % | {base} | {ratio} |")  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    ap.add_argument("--paths", type=int, default=3)
+    ap.add_argument("--samples", type=int, default=2400)
+    ap.add_argument("--big", action="store_true", help="also 1,000 random primitives")
+    ap.add_argument("--long", action="store_true", help="also 10x the samples (default only)")
+    ap.add_argument("--baseline", default=BASELINE)
+    ap.add_argument("--no-baseline", action="store_true")
+    args = ap.parse_args()
+    if args.worker:
+        print(json.dumps(worker(json.loads(args.worker))))
+        return
+    specs = [{"library": "bundled", "samples": args.samples, "paths": args.paths,
+              "cases": list(CASES)}]  # fmt: skip
+    if args.long:
+        specs.append({"library": "bundled", "samples": 10 * args.samples, "paths": args.paths,
+                      "cases": ["default"]})  # fmt: skip
+    if args.big:
+        specs.append({"library": "random-1000", "samples": args.samples, "paths": args.paths,
+                      "cases": ["default"]})  # fmt: skip
+    print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    with tempfile.TemporaryDirectory(prefix="bench_novel_") as tmp:
+        old_tree = None if args.no_baseline else _baseline_tree(args.baseline, tmp)
+        for spec in specs:
+            new = _run(ROOT, spec)
+            old = None if old_tree is None else _run(old_tree, spec)
+            _report(spec, new, old)
+    print(f"\nbaseline: git revision {args.baseline}" if not args.no_baseline else "")
+    print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
