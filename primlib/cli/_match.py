@@ -17,6 +17,7 @@ import click
 
 from primlib._errors import InputError
 from primlib.cli import main
+from primlib.cli._progress import stderr_progress
 from primlib.defaults import TIME_SCALE
 
 __all__ = ["match"]
@@ -165,6 +166,9 @@ def match(
         kw = {"rotation": rotation, "time_scale": tuple(time_scale)}
         if min_segment is not None:  # else the library's default (a server's too)
             kw["min_segment"] = min_segment
+        if not ctx.find_root().obj.get("remote"):
+            # a line a second on stderr once matching has taken 2 s (stdout stays clean)
+            kw["progress"] = stderr_progress("match: path samples covered", after=2.0, every=1.0)
         ws = None
         if out_file is not None:
             ws = lib.warm_start(traj, machine=machine_name, eps=e, **kw)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -38,6 +38,7 @@ def match_path(
     min_step: float | None = None,
     min_segment: float | None = None,
     options: SearchOptions | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Match:
     """Match a new path against a machine's primitives.
 
@@ -54,8 +55,8 @@ def match_path(
     time_scale : (float, float), optional
         Allowed primitive duration / segment duration; default
         :data:`primlib.defaults.TIME_SCALE`.
-    min_step, options
-        As for :func:`segment_path`.
+    min_step, options, progress
+        As for :func:`segment_path` (``progress(done, total)`` counts path samples).
     min_segment : float, optional
         Shortest matched segment kept, seconds of the path; a shorter match is not worth a
         junction and becomes part of the unmatched stretch beside it (the warm start fills
@@ -95,15 +96,10 @@ def match_path(
     n = max(int(round(path.duration / index.dt)) + 1, 2)
     points = path.at(np.linspace(0.0, 1.0, n))
     check_path_samples(points, "path")
+    kw = {"time_scale": time_scale, "min_step": min_step, "options": options}
+    dt = path.duration / (n - 1)
     segments, info = segment_path(
-        index,
-        points,
-        path.duration / (n - 1),
-        eps,
-        rotation=rotation,
-        time_scale=time_scale,
-        min_step=min_step,
-        options=options,
+        index, points, dt, eps, rotation=rotation, progress=progress, **kw
     )
     segments = drop_short(segments, float(shortest) / path.duration, index.dim)
     info["min_segment"] = float(shortest)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -209,7 +210,7 @@ class _Segmenter:
             rmsd=float(res.rmsd),
         )
 
-    def run(self, sig: int) -> list[Segment]:
+    def run(self, sig: int, progress=None) -> list[Segment]:
         """The whole path, cut by cut; unmatched stretches grow σ first, doubling while the
         failures go on (a sub-sample sliver costs one step, a long unmatched stretch only
         log₂ of its length in searches)."""
@@ -224,6 +225,8 @@ class _Segmenter:
                 segments.append(self.segment(ia / last, best[0] / last, best[1]))
                 ia = best[0]
                 advance = sig
+                if progress is not None:
+                    progress(ia, last)
                 continue
             ib = min(last, ia + advance)
             if last - ib < _MIN_SAMPLES:
@@ -234,6 +237,8 @@ class _Segmenter:
                 segments.append(_unmatched(ia / last, ib / last, d))
             ia = ib
             advance *= 2
+            if progress is not None:
+                progress(ia, last)
         return segments
 
 
@@ -264,6 +269,7 @@ def segment_with(
     eps: float,
     opts: SearchOptions,
     min_step: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[list[Segment], dict[str, Any]]:
     """:func:`segment_path` with a given seed finder (the index search, or a reference)."""
     t_start = time.perf_counter()
@@ -279,7 +285,7 @@ def segment_with(
     bank.require()
     built = bank.index_seconds
     seg = _Segmenter(seeder, bank, PathPiece(pts, (n - 1) * float(dt)), eps, opts)
-    segments = seg.run(max(1, int(round(sigma * (n - 1)))))
+    segments = seg.run(max(1, int(round(sigma * (n - 1)))), progress)
     stats = seeder.stats
     info = {
         "search": getattr(seeder, "name", "index"),
@@ -307,6 +313,7 @@ def segment_path(
     time_scale: tuple[float, float] | None = None,
     min_step: float | None = None,
     options: SearchOptions | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[list[Segment], dict[str, Any]]:
     """Cut a path into the fewest pieces that each match a stored piece within eps.
 
@@ -332,6 +339,9 @@ def segment_path(
         declared unmatched σ at a time, doubling while nothing matches.
     options : SearchOptions, optional
         Further knobs of the search.
+    progress : callable, optional
+        ``progress(done, total)`` after each cut: path samples covered so far, of
+        ``total = n − 1``.
 
     Returns
     -------
@@ -349,4 +359,4 @@ def segment_path(
     """
     index = as_index(bank)
     opts = resolve_options(rotation, time_scale, options)
-    return segment_with(IndexSearch(index, opts), index, points, dt, eps, opts, min_step)
+    return segment_with(IndexSearch(index, opts), index, points, dt, eps, opts, min_step, progress)
