@@ -216,3 +216,42 @@ def test_a_constant_path_is_refused_at_once():
     assert time.perf_counter() - t0 < 1.0  # no search ran (generous: a check of 5,000 rows)
     with pytest.raises(InputError, match=r"path: expected coordinates within ±1e\+09"):
         segment_path(bank, bank.points_of(0) * 1e300, DT, 0.1)
+
+
+@pytest.mark.parametrize("noise_first", [True, False])
+def test_the_lowest_rmsd_primitive_matching_the_prefix_wins(noise_first):
+    """Two stored copies of the path, one exact and one with noise of 0.6 eps: both match
+    the whole path; the exact one is reported, whichever the search meets first."""
+    from primlib.store import Bank
+
+    rng = np.random.default_rng(11)
+    t = np.linspace(0, 1, 300)[:, None]
+    exact = np.hstack([40 * np.cos(3 * t), 30 * np.sin(5 * t), 10 * t])
+    eps = 0.05
+    noisy = exact + rng.normal(size=exact.shape) * 0.6 * eps / np.sqrt(3)
+    pieces = [noisy, exact] if noise_first else [exact, noisy]
+    bank = Bank.from_samples(pieces, dt=0.01)
+    rot = Rotation.from_euler("xyz", [0.3, -0.2, 0.5]).as_matrix()
+    segs, _ = segment_path(bank, exact @ rot.T + 7.0, 0.01, eps)
+    assert len(segs) == 1
+    assert segs[0].primitive == (1 if noise_first else 0)
+    assert segs[0].rmsd < 1e-3 * eps
+
+
+def test_a_match_found_on_a_worse_primitive_is_replaced_by_the_best():
+    """The segment takes the lowest-RMSD primitive of its prefix, not the probe's first hit."""
+    from primlib.match._options import Candidate, PathPiece
+    from primlib.match._segment import _Found, _Segmenter, resolve_options
+    from primlib.store import Bank
+
+    rng = np.random.default_rng(12)
+    t = np.linspace(0, 1, 300)[:, None]
+    exact = np.hstack([40 * np.cos(3 * t), 30 * np.sin(5 * t), 10 * t])
+    eps = 0.05
+    noisy = exact + rng.normal(size=exact.shape) * 0.6 * eps / np.sqrt(3)
+    index = BankIndex(Bank.from_samples([noisy, exact], dt=0.01))
+    opts = resolve_options("full", None, None)
+    seg = _Segmenter(IndexSearch(index, opts), index, PathPiece(exact, 2.99), eps, opts)
+    first_hit = _Found(Candidate(0, 0.0, 299.0, 0.0), 0.6 * eps, False)
+    out = seg.segment(0.0, 1.0, first_hit)
+    assert out.primitive == 1 and out.rmsd < 1e-3 * eps

@@ -38,7 +38,7 @@ from primlib.match._checks import check_path_samples
 from primlib.match._index_search import IndexSearch
 from primlib.match._kabsch import ROTATION_MODES
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
-from primlib.match._refine import clamp, piece_rmsd, refine
+from primlib.match._refine import clamp, piece_rmsd
 from primlib.match._refine_many import refine_many, rmsd_many
 from primlib.match._reject import rejects
 from primlib.match._types import Segment
@@ -187,14 +187,26 @@ class _Segmenter:
             iv = min(last, iv + step) if found is not None else max(ia + 1, iv - step)
         return best
 
-    def segment(self, a: float, b: float, found: _Found) -> Segment:
-        """The segment [a, b] of a probe's match, at its refined optimum."""
+    def best(self, a: float, b: float, found: _Found) -> Candidate:
+        """The lowest-RMSD match of [a, b] among the probe's match and the search's seeds,
+        each at its refined optimum (or as it came, when that is lower): the longest prefix
+        is the binary search's, the primitive the best that matches it."""
         bank, path, opts = self.bank, self.path, self.opts
-        cand, rmsd = found.cand, found.rmsd
+        dur = (b - a) * path.duration
+        shortest = opts.time_scale[0] * dur / bank.dt * (1 - 1e-9)
+        seeds = (clamp(bank, s, dur, opts) for s in self.seeder.seeds(path, a, b, self.eps))
+        cands = [found.cand, *(c for c in seeds if c.x1 - c.x0 >= shortest)]
         kc = path.confirm_points(a, b)
-        ref = refine(bank, cand, path, a, b, opts)
-        if piece_rmsd(bank, ref, path, a, b, kc, opts.rotation).rmsd < rmsd:
-            cand = ref
+        both = cands + refine_many(bank, cands, path, a, b, opts)
+        r = rmsd_many(bank, both, path, a, b, kc, opts.rotation)
+        r[0] = min(r[0], found.rmsd)  # the match as found, at the probe's own RMSD
+        return both[int(np.argmin(r))]
+
+    def segment(self, a: float, b: float, found: _Found) -> Segment:
+        """The segment [a, b] of a probe's match (:meth:`best`)."""
+        bank, path, opts = self.bank, self.path, self.opts
+        cand = self.best(a, b, found)
+        kc = path.confirm_points(a, b)
         res = piece_rmsd(bank, cand, path, a, b, kc, opts.rotation)
         n_p = bank.offsets[cand.prim + 1] - bank.offsets[cand.prim]
         return Segment(
