@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Sequence
+from dataclasses import replace
 from os import PathLike
 from typing import Any
 
@@ -21,6 +22,8 @@ import numpy as np
 from primlib._errors import NoMatchError
 from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
+from primlib.greybox import GreyBox, fit_greybox
+from primlib.pipeline._greywarm import bank_pairs, choose_per_segment, linear_parts
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
 from primlib.plant import Machine
@@ -60,6 +63,9 @@ class WarmStarter:
 
     Attributes
     ----------
+    greyboxes : OrderedDict
+        The grey-box models (:func:`primlib.greybox.fit_greybox` on all of a machine's
+        stored pairs), keyed like ``refined`` by (machine definition, primitive ids).
     refined : OrderedDict
         The refined-model cache: (machine definition, primitive ids) -> RefinedModel. Ids
         are never reused within a store and stored primitives never change, so the key
@@ -74,6 +80,7 @@ class WarmStarter:
         self.store = store
         self.refine_cache = int(refine_cache)
         self.refined: OrderedDict[tuple, RefinedModel] = OrderedDict()
+        self.greyboxes: OrderedDict[tuple, GreyBox] = OrderedDict()
         self.indexes: dict[str, BankIndex] = {}
 
     def index(self, machine: str) -> BankIndex:
@@ -111,21 +118,27 @@ class WarmStarter:
         return match_path(self.index(machine), traj, eps=e, **kw)
 
     # ------------------------------------------------------------------ refine
-    def refined_model(self, machine: Machine, bank: Bank, ids: Sequence[int]) -> RefinedModel:
+    def refined_model(
+        self, machine: Machine, bank: Bank, ids: Sequence[int], gb: GreyBox | None = None
+    ) -> RefinedModel:
         """The model refined on the matched primitives, plus others of the bank up to 24.
 
         Others are added so that an axis the matched pieces do not move (a rotation can
-        move it on the new path) is refined too. Cached on this object.
+        move it on the new path) is refined too. With a grey-box model ``gb`` the fit sees
+        the stored inputs' linear parts (friction, ripple and bias taken out), so those do
+        not drive the linear model's gain, time constant and lag. Cached on this object.
         """
         all_ids = [int(i) for i in np.asarray(bank.ids)]
         chosen = [i for i in ids if i in all_ids]
         chosen += [i for i in all_ids if i not in chosen][: max(0, _REFINE_MAX - len(chosen))]
-        key = (repr(machine.to_dict()), tuple(sorted(chosen)))
+        key = (repr(machine.to_dict()), tuple(sorted(chosen)), gb is not None)
         hit = self.refined.get(key)
         if hit is not None:
             self.refined.move_to_end(key)
             return hit
         stored = stored_signals(bank, chosen, versions=False)
+        if gb is not None:
+            stored = linear_parts(gb, bank, stored)
         model = refine_machine(
             machine, [(s.signal, s.points - s.points[0]) for s in stored.values()]
         )
@@ -133,6 +146,50 @@ class WarmStarter:
         while len(self.refined) > self.refine_cache:
             self.refined.popitem(last=False)
         return model
+
+    def greybox(self, machine: Machine, bank: Bank) -> GreyBox:
+        """The grey-box model fitted to all of the machine's stored pairs (cached)."""
+        key = (repr(machine.to_dict()), tuple(int(i) for i in np.asarray(bank.ids)))
+        hit = self.greyboxes.get(key)
+        if hit is None:
+            pairs = bank_pairs(bank)
+            if not pairs:
+                raise NoMatchError(
+                    f"machine {machine.name!r} has no stored primitives to fit a model to"
+                )
+            hit = self.greyboxes[key] = fit_greybox(machine, pairs)
+            while len(self.greyboxes) > self.refine_cache:
+                self.greyboxes.popitem(last=False)
+        self.greyboxes.move_to_end(key)
+        return hit
+
+    def model_input(
+        self, path: Trajectory | str, machine: str, origin: Any = None
+    ) -> tuple[np.ndarray, GreyBox]:
+        """The model-only input of a path: the grey-box model's inverse, no stored signals.
+
+        Parameters
+        ----------
+        path : Trajectory or str
+        machine : str
+        origin : array of shape (d,), optional
+            Where the path starts on the machine (absolute); without it the
+            position-dependent terms (ripple) are left out.
+
+        Returns
+        -------
+        (u, GreyBox)
+
+        Raises
+        ------
+        NoMatchError
+            The machine has no primitives to fit a model to.
+        """
+        traj = as_trajectory(path)
+        m = self.store.machine(machine)
+        gb = self.greybox(m, self.store.bank(machine))
+        pts = traj.sample(m.dt)
+        return gb.inverse(pts - pts[0], origin), gb
 
     # ------------------------------------------------------------------ warm start
     def warm_start(
@@ -146,6 +203,8 @@ class WarmStarter:
         refine: bool = True,
         correction: Correction | None = None,
         match: Match | None = None,
+        origin: Any = None,
+        greybox: bool = True,
         **kw: Any,
     ) -> WarmStart:
         """First-iteration ILC input for a new path from the machine's primitives.
@@ -170,6 +229,14 @@ class WarmStarter:
             ``benchmarks/_ablations.py``).
         match : Match, optional
             A match already computed for this path and machine.
+        origin : array of shape (d,), optional
+            Where the path starts on the machine (absolute coordinates); position-dependent
+            terms (force ripple) are evaluated there. None: unknown, those terms left out.
+        greybox : bool
+            Split the stored signals by the machine's grey-box model: the linear part
+            carried by superposition, friction, ripple and bias re-evaluated on the new
+            motion, per segment that or the model-only input (``WarmStart.model_u``),
+            whichever predicts less error. False: spliced whole (the paper's method).
         **kw
             Passed to :meth:`match`.
 
@@ -189,9 +256,7 @@ class WarmStarter:
         ids = sorted({s.primitive for s in match.segments if s.primitive is not None})
         bank = self.store.bank(machine)
         stored = stored_signals(bank, ids) if ids else {}
-        model = None
-        if refine and stored and not m.feedback:
-            model = self.refined_model(m, bank, ids)
+        model, gb, stored = self._models(m, bank, ids, stored, refine, greybox)
         pts = traj.sample(m.dt)
         res = splice(
             m if model is None else model.machine,
@@ -204,7 +269,27 @@ class WarmStarter:
             inverse_machine=m,
             correction=correction,
         )
-        return _warm_start_result(res, m, match, model)
+        if gb is None:
+            return _warm_start_result(res, m, match, model)
+        return _grey_result(res, m, match, model, gb, pts - pts[0], origin)
+
+    def _models(self, m: Machine, bank: Bank, ids, stored, refine: bool, greybox: bool):
+        """(refined model or None, grey-box model or None, the stored signals to splice).
+
+        The grey-box terms are fitted beside the nominal model, the linear model is refined
+        on what they leave of the stored inputs, and the terms are fitted again beside the
+        refined model; the splice then carries the stored inputs' linear parts.
+        """
+        gb = model = None
+        if greybox:
+            gb = self.greybox(m, bank)
+        if refine and stored and not m.feedback:
+            model = self.refined_model(m, bank, ids, gb)
+            if gb is not None:
+                gb = self.greybox(model.machine, bank)
+        if gb is not None:
+            stored = linear_parts(gb, bank, stored)
+        return model, gb, stored
 
     # ------------------------------------------------------------------ learn
     def learn(
@@ -271,6 +356,31 @@ class WarmStarter:
         crms = None if res.rms_contour is None else [float(x) for x in res.rms_contour]
         t = np.arange(pts.shape[0]) * m.dt
         return LearnRun(m, ref, t, ws, res, crms, tuple(notes))
+
+
+def _grey_result(res, m, match, model, gb, ref, origin) -> WarmStart:
+    """The WarmStart with the grey-box model: nonlinear terms added, chosen per segment."""
+    u_lin, lin, non = gb.terms(ref, origin)
+    model_u = u_lin + lin + non
+    u, choices, predicted = choose_per_segment(
+        gb, res.segments, res.sample_segment, res.u + non, model_u
+    )
+    base = _warm_start_result(res, m, match, model)
+    used = [
+        f"segment {j}: {c} (predicted input error {p:.3g})"
+        for j, (c, p) in enumerate(zip(choices, predicted, strict=True))
+    ]
+    notes = (*base.notes, f"grey-box model of the machine: {gb.describe()}")
+    return replace(
+        base,
+        u=u,
+        notes=notes,
+        model_u=model_u,
+        greybox=gb,
+        choices=choices,
+        predicted=predicted,
+        sources=tuple(f"{s}; {c}" for s, c in zip(base.sources, used, strict=True)),
+    )
 
 
 def _warm_start_result(res, m: Machine, match: Match, model) -> WarmStart:

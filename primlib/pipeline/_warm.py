@@ -53,6 +53,16 @@ class WarmStart:
         The model refined on the matched primitives (None when not refined).
     spliced : array, shape (n, d) or None
         The transformed pieces joined over the bands, before the residual correction.
+    model_u : array, shape (n, d) or None
+        The model-only input: the grey-box model's inverse over the whole path, no stored
+        signal (None without the grey-box model).
+    greybox : GreyBox or None
+        The machine's grey-box model, fitted to all of its stored pairs.
+    choices : tuple of str
+        Per segment "stored" (the stored signal carried over) or "model" (the model-only
+        input), empty without the grey-box model.
+    predicted : tuple of float
+        Per segment the predicted RMS input error of the choice (input units).
     """
 
     u: np.ndarray
@@ -65,6 +75,10 @@ class WarmStart:
     notes: tuple[str, ...] = field(default_factory=tuple)
     model: RefinedModel | None = None
     spliced: np.ndarray | None = None
+    model_u: np.ndarray | None = None
+    greybox: Any = None
+    choices: tuple[str, ...] = field(default_factory=tuple)
+    predicted: tuple[float, ...] = field(default_factory=tuple)
 
     @property
     def n_unmatched(self) -> int:
@@ -80,6 +94,8 @@ class WarmStart:
             "sources": list(self.sources),
             "methods": list(self.methods),
             "notes": list(self.notes),
+            "choices": list(self.choices),
+            "predicted": [float(p) for p in self.predicted],
             "match": self.match.to_dict(),
         }
 

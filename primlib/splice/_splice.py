@@ -54,6 +54,9 @@ class SpliceResult:
         The pieces' inputs joined over the bands, before the residual correction.
     correction : str
         The name of the correction applied (see :func:`splice`).
+    segments : tuple of Segment
+        The segments as planned (one primitive's consecutive windows joined, slivers
+        absorbed): what ``sample_segment``, ``sources`` and ``methods`` index.
     """
 
     u: np.ndarray
@@ -64,6 +67,7 @@ class SpliceResult:
     notes: tuple[str, ...] = field(default_factory=tuple)
     spliced: np.ndarray | None = None
     correction: str = "none"
+    segments: tuple = ()
 
 
 def _place_all(machine, plan: JunctionPlan, stored, method, inverse_machine) -> list:
@@ -205,4 +209,5 @@ def _result(plan: JunctionPlan, pieces, u, u_s, more: list, name: str) -> Splice
         notes=tuple(notes),
         spliced=u_s,
         correction=name,
+        segments=tuple(plan.segments),
     )

@@ -1,0 +1,16 @@
+"""A grey-box model of a machine, fitted to the library's own stored pairs.
+
+The stored inputs of a machine's primitives say how the real machine differs from its
+linear model: friction, a force ripple that depends on where the axis is, a constant
+disturbance, a wrong mass or damping, an unmodelled lag. :func:`fit_greybox` fits those
+terms (:data:`TERMS`) beside the linear model's inverse by least squares; the result,
+:class:`GreyBox`, gives the input for any path (:meth:`GreyBox.inverse`), split into the
+linear model's inverse, its linear correction and the nonlinear terms
+(:meth:`GreyBox.terms`), which is what lets the warm start carry a stored signal over only
+as far as a transform preserves it.
+"""
+
+from primlib.greybox._features import LINEAR, NONLINEAR, POSITION, TERMS
+from primlib.greybox._fit import GreyBox, Pair, fit_greybox
+
+__all__ = ["GreyBox", "LINEAR", "NONLINEAR", "POSITION", "Pair", "TERMS", "fit_greybox"]

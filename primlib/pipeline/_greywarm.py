@@ -1,0 +1,137 @@
+"""The warm start on a machine that is not its linear model: split, carry, re-evaluate.
+
+A stored input ``u_l`` is what the real machine needed for its path where it ran. The
+grey-box model (:mod:`primlib.greybox`, fitted to all of the machine's stored pairs) splits
+it into the nonlinear terms the model explains there -- friction of that motion, ripple of
+those absolute positions, the bias -- ``N_l``, and the rest, ``L_l = u_l - N_l``, which is
+what a *linear* machine would have needed: the part superposition may rotate and time-scale
+(:func:`primlib.splice.splice`). The warm start of a new path is then
+
+    u0 = splice(L) + N(new motion, new absolute positions)
+
+so each part is carried exactly as far as the transform preserves it: in place the two
+halves add back to the stored input itself; translated, the ripple is re-evaluated where
+the path now runs; rotated or time-scaled, friction follows the new velocities. On a linear
+machine N = 0 and this is the splice of today. Beside it the pipeline computes the
+model-only input ``GreyBox.inverse`` over the whole path, which stored signals must beat:
+per segment the warm start keeps whichever has the lower predicted error
+(:func:`choose_per_segment`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from primlib.defaults import BAND_SAMPLES
+from primlib.greybox import GreyBox, Pair
+from primlib.splice import StoredSignal
+from primlib.store import Bank
+
+__all__ = ["bank_origins", "bank_pairs", "choose_per_segment", "linear_parts"]
+
+_IN_PLACE_TOL = 1e-6  # rotation, time scale: |R - I|, |k - 1| below this is "not transformed"
+
+
+def bank_origins(bank: Bank) -> np.ndarray:
+    """Absolute start of each primitive, shape (k, d), NaN where the library does not know."""
+    origins = getattr(bank, "origins", None)
+    if origins is None:
+        return np.full((len(bank.ids), bank.dim), np.nan)
+    return np.asarray(origins, dtype=float).reshape(len(bank.ids), bank.dim)
+
+
+def bank_pairs(bank: Bank) -> list[Pair]:
+    """Every primitive of the bank as a grey-box :class:`~primlib.greybox.Pair`."""
+    offs = np.asarray(bank.offsets)
+    pts = np.asarray(bank.points)
+    sig = np.asarray(bank.signals)
+    org = bank_origins(bank)
+    out = []
+    for i in range(len(bank.ids)):
+        sl = slice(offs[i], offs[i + 1])
+        if offs[i + 1] - offs[i] < 4:
+            continue
+        o = org[i] if np.all(np.isfinite(org[i])) else None
+        out.append(Pair(sig[sl], pts[sl] - pts[offs[i]], o))
+    return out
+
+
+def _nonlinear_at(gb: GreyBox, points: np.ndarray, origin) -> np.ndarray:
+    return gb.terms(points - points[0], origin)[2]
+
+
+def linear_parts(
+    gb: GreyBox, bank: Bank, stored: dict[int, StoredSignal]
+) -> dict[int, StoredSignal]:
+    """The stored signals minus the nonlinear terms the grey-box model gives them.
+
+    Versions at other durations (for eq. (20)) lose their own terms, evaluated on their own
+    motion (a version is the same path run faster or slower: other velocities, same places).
+    """
+    ids = np.asarray(bank.ids)
+    offs = np.asarray(bank.offsets)
+    pts = np.asarray(bank.points)
+    org = bank_origins(bank)
+    durations = np.asarray(bank.durations, dtype=float)
+    out = {}
+    for pid, s in stored.items():
+        i = int(np.flatnonzero(ids == pid)[0])
+        origin = org[i] if np.all(np.isfinite(org[i])) else None
+        versions = []
+        for sig, dur in s.versions:
+            j = int(np.flatnonzero(np.isclose(durations, dur) & (np.diff(offs) == len(sig)))[0])
+            vp = pts[offs[j] : offs[j + 1]]
+            versions.append((sig - _nonlinear_at(gb, vp, origin), dur))
+        out[pid] = replace(
+            s,
+            signal=s.signal - _nonlinear_at(gb, s.points, origin),
+            versions=tuple(versions),
+        )
+    return out
+
+
+def _transformed(seg) -> bool:
+    R = np.asarray(seg.rotation, dtype=float)
+    return (
+        float(np.max(np.abs(R - np.eye(R.shape[0])))) > _IN_PLACE_TOL
+        or abs(float(seg.time_scale) - 1.0) > _IN_PLACE_TOL
+    )
+
+
+def choose_per_segment(
+    gb: GreyBox, segments, sample_segment: np.ndarray, u_stored: np.ndarray, u_model: np.ndarray
+) -> tuple[np.ndarray, tuple[str, ...], tuple[float, ...]]:
+    """Per segment the input with the lower predicted error: (u, choices, predicted).
+
+    The model-only input's predicted error is the grey-box model's cross-validated input
+    error (RMS over axes): what it misses on motion it was not fitted to. The stored
+    signal's is zero for a piece neither rotated nor time-scaled (a translation moves every
+    term the model has and the rest of the stored input is carried exactly); for a rotated
+    or time-scaled piece it is the same CV error -- the part of the stored input the model
+    does not explain is carried by superposition, right where it is linear, as wrong as
+    leaving it out where it is not -- and a tie keeps the stored signal. An unmatched
+    segment has only the model. Where the choice changes between segments the two inputs
+    are blended over a band of ``BAND_SAMPLES`` samples. Returns the input, the choice per
+    segment ("stored" or "model") and the predicted RMS input error per segment.
+    """
+    model_err = float(np.sqrt(np.mean(gb.cv_rms**2)))
+    weight = np.zeros(u_model.shape[0])
+    choices, predicted = [], []
+    for j, seg in enumerate(segments):
+        if seg.primitive is None:
+            choices.append("model")
+            predicted.append(model_err)
+            continue
+        stored_err = model_err if _transformed(seg) else 0.0
+        use = stored_err <= model_err
+        choices.append("stored" if use else "model")
+        predicted.append(min(stored_err, model_err))
+        weight[sample_segment == j] = 1.0 if use else 0.0
+    if 0.0 < weight.mean() < 1.0:  # switch over a band, like the splice's junctions
+        ramp = np.hanning(BAND_SAMPLES + 2)[1:-1]
+        weight = np.convolve(np.pad(weight, BAND_SAMPLES, mode="edge"), ramp / ramp.sum(), "same")
+        weight = weight[BAND_SAMPLES:-BAND_SAMPLES]
+    w = weight[:, None]
+    return w * u_stored + (1 - w) * u_model, tuple(choices), tuple(predicted)
