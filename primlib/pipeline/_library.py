@@ -73,6 +73,11 @@ class Library(Store):
         """First-iteration input for a new path (:meth:`WarmStarter.warm_start`)."""
         return self.starter.warm_start(path, machine, eps, **kw)
 
+    def model_input(self, path: Trajectory | str, machine: str, origin: Any = None):
+        """The model-only input of a path and the grey-box model it comes from
+        (:meth:`WarmStarter.model_input`)."""
+        return self.starter.model_input(path, machine, origin)
+
     def learn(
         self,
         path: Trajectory | str,

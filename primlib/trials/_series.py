@@ -187,14 +187,18 @@ def _first_input(lib, traj, machine: str, ref: np.ndarray, first: str, eps: floa
         return invert(model, ref), "inverse", ["the first input is the model inverse (asked for)"]
     from primlib.match import default_eps
 
+    origin = traj.sample(model.dt)[0]  # a series' path is in absolute coordinates
     try:
-        ws = lib.warm_start(traj, machine=machine, eps=eps or default_eps(traj))
+        ws = lib.warm_start(traj, machine=machine, eps=eps or default_eps(traj), origin=origin)
     except NoMatchError as exc:
-        note = f"nothing in the library matches ({exc}); the first input is the model inverse"
-        return invert(model, ref), "inverse", [note]
+        return _model_only(lib, traj, machine, model, ref, origin, exc)
     notes = list(ws.notes)
     if ws.n_unmatched == len(ws.methods):
-        notes.insert(0, "nothing in the library matches; the first input is the model inverse")
+        notes.insert(
+            0,
+            "nothing in the library matches; the first input is the model inverse (the "
+            "model fitted to the library's stored pairs)",
+        )
         return ws.u, "inverse", notes
     if ws.n_unmatched:
         notes.insert(
@@ -203,6 +207,23 @@ def _first_input(lib, traj, machine: str, ref: np.ndarray, first: str, eps: floa
             "they start from the model inverse",
         )
     return ws.u, "warm", [*notes, *ws.sources]
+
+
+def _model_only(lib, traj, machine: str, model, ref, origin, exc):
+    """(u0, "inverse", notes) where nothing matched: the inverse of the model fitted to the
+    library's stored pairs where it has any, else of the machine's model."""
+    from primlib.plant import invert
+
+    try:
+        u, gb = lib.model_input(traj, machine, origin)
+    except NoMatchError:
+        note = f"nothing in the library matches ({exc}); the first input is the model inverse"
+        return invert(model, ref), "inverse", [note]
+    note = (
+        f"nothing in the library matches ({exc}); the first input is the inverse of the "
+        f"model fitted to the library's stored pairs: {gb.describe()}"
+    )
+    return u, "inverse", [note]
 
 
 def start(
