@@ -17,7 +17,9 @@ STAGE = Machine.from_json(ROOT / "examples" / "stage" / "stage.json")
 
 
 def _nominal(stage=STAGE) -> Machine:
-    plants = {a: ([p["K"] / stage.length_unit], [p["M"], p["B"], 0.0]) for a, p in stage.motors.items()}
+    plants = {
+        a: ([p["K"] / stage.length_unit], [p["M"], p["B"], 0.0]) for a, p in stage.motors.items()
+    }
     return Machine(stage.name, stage.dt, stage.axes, plants)
 
 

@@ -29,8 +29,7 @@ import numpy as np
 from scipy import optimize
 
 from primlib._errors import InputError
-from primlib.greybox._features import LINEAR, NONLINEAR, POSITION, TERMS, axis_features
-from primlib.greybox._features import speed_scale
+from primlib.greybox._features import LINEAR, NONLINEAR, POSITION, TERMS, axis_features, speed_scale
 from primlib.plant import Machine, invert
 
 __all__ = ["GreyBox", "Pair", "fit_greybox"]

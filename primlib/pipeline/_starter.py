@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import NoMatchError
+from primlib.greybox import GreyBox, fit_greybox
 from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
-from primlib.greybox import GreyBox, fit_greybox
 from primlib.pipeline._greywarm import bank_pairs, choose_per_segment, linear_parts
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
