@@ -102,7 +102,7 @@ def _transformed(seg) -> bool:
 
 def choose_per_segment(
     gb: GreyBox, segments, sample_segment: np.ndarray, u_stored: np.ndarray, u_model: np.ndarray
-) -> tuple[np.ndarray, tuple[str, ...], tuple[float, ...]]:
+) -> tuple[np.ndarray, tuple[str, ...], tuple[tuple[float, float], ...]]:
     """Per segment the input with the lower predicted error: (u, choices, predicted).
 
     The model-only input's predicted error is the grey-box model's cross-validated input
@@ -114,20 +114,19 @@ def choose_per_segment(
     leaving it out where it is not -- and a tie keeps the stored signal. An unmatched
     segment has only the model. Where the choice changes between segments the two inputs
     are blended over a band of ``BAND_SAMPLES`` samples. Returns the input, the choice per
-    segment ("stored" or "model") and the predicted RMS input error per segment.
+    segment ("stored" or "model") and per segment the predicted RMS input errors of the
+    stored signal (inf where nothing matched) and of the model-only input.
     """
     model_err = float(np.sqrt(np.mean(gb.cv_rms**2)))
     weight = np.zeros(u_model.shape[0])
     choices, predicted = [], []
     for j, seg in enumerate(segments):
-        if seg.primitive is None:
-            choices.append("model")
-            predicted.append(model_err)
-            continue
-        stored_err = model_err if _transformed(seg) else 0.0
+        stored_err = np.inf
+        if seg.primitive is not None:
+            stored_err = model_err if _transformed(seg) else 0.0
         use = stored_err <= model_err
         choices.append("stored" if use else "model")
-        predicted.append(min(stored_err, model_err))
+        predicted.append((stored_err, model_err))
         weight[sample_segment == j] = 1.0 if use else 0.0
     if 0.0 < weight.mean() < 1.0:  # switch over a band, like the splice's junctions
         ramp = np.hanning(BAND_SAMPLES + 2)[1:-1]

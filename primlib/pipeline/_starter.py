@@ -366,10 +366,7 @@ def _grey_result(res, m, match, model, gb, ref, origin) -> WarmStart:
         gb, res.segments, res.sample_segment, res.u + non, model_u
     )
     base = _warm_start_result(res, m, match, model)
-    used = [
-        f"segment {j}: {c} (predicted input error {p:.3g})"
-        for j, (c, p) in enumerate(zip(choices, predicted, strict=True))
-    ]
+    used = [_choice_text(c, p) for c, p in zip(choices, predicted, strict=True)]
     notes = (*base.notes, f"grey-box model of the machine: {gb.describe()}")
     return replace(
         base,
@@ -378,8 +375,20 @@ def _grey_result(res, m, match, model, gb, ref, origin) -> WarmStart:
         model_u=model_u,
         greybox=gb,
         choices=choices,
-        predicted=predicted,
+        predicted=tuple(min(p) for p in predicted),
         sources=tuple(f"{s}; {c}" for s, c in zip(base.sources, used, strict=True)),
+    )
+
+
+def _choice_text(choice: str, predicted: tuple[float, float]) -> str:
+    """Why a segment uses what it uses, in one clause."""
+    stored, model = predicted
+    if not np.isfinite(stored):
+        return f"model-only input (nothing stored matched; predicted input error {model:.3g})"
+    what = "stored signal carried over" if choice == "stored" else "model-only input"
+    return (
+        f"{what} (predicted input error: stored {stored:.3g}, model-only {model:.3g}; "
+        f"{'in place or translated' if stored == 0 else 'rotated or time-scaled'})"
     )
 
 
