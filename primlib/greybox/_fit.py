@@ -11,9 +11,13 @@ model's inverse, ``r = u - G^-1 y``, is linear in the coefficients, so per axis:
    is invented from noise or from a linear model's structured error);
 2. the coefficients are one ridge-regularised least-squares solve on standardised columns
    (a column the data does not excite -- an axis that barely moved, a constant speed -- gets
-   no weight instead of a huge one; nothing is bounded, so nothing sits silently at a bound);
-3. the error it will make is estimated by K-fold cross-validation over contiguous blocks
-   (whole primitives when there are enough), beside the same for the linear terms alone.
+   no weight instead of a huge one; nothing is bounded, so nothing sits silently at a bound),
+   on *output* error: residual and regressors are run through the linear model, so an input
+   error counts by the tracking error it makes (on an integrating axis a bias counts, the
+   high-frequency noise ILC learned into a stored input hardly does);
+3. the error it will make is estimated by K-fold cross-validation over whole primitives
+   (contiguous blocks when there are fewer than five), beside the same for the linear terms
+   alone and for no terms.
 
 Noise that ILC learned into the stored inputs is not in any regressor: least squares over
 many samples averages it out.
@@ -26,7 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import optimize
+from scipy import optimize, signal
 
 from primlib._errors import InputError
 from primlib.greybox._features import LINEAR, NONLINEAR, POSITION, TERMS, axis_features, speed_scale
@@ -42,6 +46,7 @@ _SEARCH_ROWS = 40_000  # rows the ripple-frequency grid is evaluated on
 _GRID_MAX = 4000  # ripple frequencies tried at most
 _LIN = [TERMS.index(t) for t in LINEAR]
 _NONLIN = [TERMS.index(t) for t in NONLINEAR + POSITION]
+_FRICTION = [TERMS.index(t) for t in NONLINEAR]
 
 
 @dataclass(frozen=True)
@@ -79,10 +84,11 @@ class GreyBox:
     speed : array, shape (d,)
         The typical speed per axis the friction terms are scaled by.
     cv_rms, cv_rms_linear : array, shape (d,)
-        Cross-validated RMS input error per axis of the whole model and of its linear
-        terms alone (input units): the error each will make on motion like the data's.
+        Cross-validated RMS output error per axis (user length units) of the model and of
+        its linear terms alone: the tracking error each input will leave on motion like
+        the data's, as the linear model propagates the input error.
     rms_nominal : array, shape (d,)
-        RMS of the stored inputs minus the linear model's inverse (no terms).
+        The same for the linear model's inverse alone (no terms).
     n_samples : int
     notes : tuple of str
     """
@@ -135,8 +141,8 @@ class GreyBox:
             lines.append(
                 f"{axis}: Coulomb {c['coulomb']:.3g}, Stribeck {c['stribeck']:.3g}, "
                 f"bias {c['bias']:.3g}, ripple {ripple:.3g} (pitch {pitch}), "
-                f"CV error {self.cv_rms[i]:.3g} (linear terms only {self.cv_rms_linear[i]:.3g},"
-                f" nominal {self.rms_nominal[i]:.3g})"
+                f"CV output error {self.cv_rms[i]:.3g} (linear terms only "
+                f"{self.cv_rms_linear[i]:.3g}, no terms {self.rms_nominal[i]:.3g})"
             )
         return "; ".join(lines)
 
@@ -230,35 +236,55 @@ def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarr
     return float(res.x) if res.fun <= vals[k] else float(grid[k])
 
 
-def _axis_fit(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarray, folds):
-    """(coef, w, cv, cv_linear) of one axis.
+def _through_model(X: np.ndarray, starts: np.ndarray, b: np.ndarray, a: np.ndarray):
+    """Each pair's rows of ``X`` (n,) or (n, c) filtered by the axis's model from rest."""
+    out = np.empty_like(X)
+    for lo, hi in zip(starts[:-1], starts[1:], strict=True):
+        out[lo:hi] = signal.lfilter(b, a, X[lo:hi], axis=0)
+    return out
 
-    Three nested models, each kept only if its cross-validated error is below
-    ``_GAIN`` times the simpler one's: the linear terms; plus friction and bias; plus a
-    ripple. A linear machine whose model is a little wrong then gets no invented friction
-    (structured linear error can look like it in-sample).
+
+def _axis_fit(row: dict) -> tuple[np.ndarray, float, float, float, float]:
+    """(coef, w, cv, cv_linear, rms_nominal) of one axis, errors in output units.
+
+    The fit is on output error: residual and regressors are run through the axis's model
+    (from rest, per pair), so least squares weighs an input error by the tracking error it
+    makes -- on an integrating axis a small bias counts, high-frequency noise that ILC
+    learned into a stored input does not. Nested models, each kept only if its
+    cross-validated error is below ``_GAIN`` times the simpler one's: no terms; the linear
+    terms; plus friction and bias; plus a ripple (nothing is invented from noise or from a
+    linear model's structured error).
     """
-    base = list(range(6))
-    cv_lin = _cv(F, r, _LIN, folds)
-    cols, best = list(_LIN), cv_lin
-    cv0 = _cv(F, r, base, folds)
-    if cv0 < _GAIN * best:
-        cols, best = base, cv0
-    w = _ripple_search(F, r, pos, step)
+    F, r, folds, starts, (b, a) = row["F"], row["r"], row["folds"], row["starts"], row["tf"]
+    Fo, ro = _through_model(F, starts, b, a), _through_model(r, starts, b, a)
+    rms0 = float(np.sqrt(np.mean(ro**2)))
+    cv_lin = _cv(Fo, ro, _LIN, folds)
+    cols, best = [], rms0
+    if cv_lin < _GAIN * best:
+        cols, best = list(_LIN), cv_lin
+    cv_nl = _cv(Fo, ro, cols + _FRICTION, folds)
+    if cv_nl < _GAIN * best:
+        cols, best = cols + _FRICTION, cv_nl
+    w = _ripple_search(F, r, row["pos"], row["step"])
     if w > 0:
-        G = _with_ripple(F, pos, w)
-        cv1 = _cv(G, r, cols + [6, 7], folds)
-        if cv1 < _GAIN * best:
-            return _solve(G, r, cols + [6, 7]), w, cv1, cv_lin
-    return _solve(F, r, cols), 0.0, best, cv_lin
+        G = _through_model(_with_ripple(F, row["pos"], w)[:, 6:], starts, b, a)
+        Go = np.concatenate([Fo[:, :6], G], axis=1)
+        cv_r = _cv(Go, ro, cols + [6, 7], folds)
+        if cv_r < _GAIN * best:
+            return _solve(Go, ro, cols + [6, 7]), w, cv_r, cv_lin, rms0
+    return _solve(Fo, ro, cols), 0.0, best, cv_lin, rms0
 
 
 def _stack(machine: Machine, pairs: Sequence[Pair]):
-    """Per-pair linear inverses, then rows per axis: features (w = 0), residual, position."""
+    """Per axis the rows of every pair: regressors (w = 0), input residual, absolute
+    position (NaN unknown), step per sample, CV fold, where each pair starts, the model."""
     d = machine.dim
     u_lins = [_model_inverse(machine, p.y) for p in pairs]
     vel = [np.diff(p.y, axis=0) / machine.dt for p in pairs]
     speed = np.array([speed_scale(np.concatenate([v[:, i] for v in vel])) for i in range(d)])
+    sizes = [p.y.shape[0] for p in pairs]
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    loops = machine.closed_loop()
     rows = []
     for i in range(d):
         F, r, pos, step, fold = [], [], [], [], []
@@ -268,13 +294,16 @@ def _stack(machine: Machine, pairs: Sequence[Pair]):
             o = np.nan if p.origin is None else p.origin[i]
             pos.append(p.y[:, i] + o)
             step.append(np.diff(p.y[:, i], append=p.y[-1, i]))
-            n = p.y.shape[0]
+            n = sizes[j]
             fold.append(
                 np.full(n, j % _FOLDS)
                 if len(pairs) >= _FOLDS
                 else np.minimum(np.arange(n) * _FOLDS // n, _FOLDS - 1)
             )
-        rows.append(tuple(np.concatenate(x) for x in (F, r, pos, step, fold)))
+        cat = [np.concatenate(x) for x in (F, r, pos, step, fold)]
+        num_u, _, den = loops[i]
+        rows.append(dict(zip(("F", "r", "pos", "step", "folds"), cat, strict=True)))
+        rows[-1].update(starts=starts, tf=(num_u, den))
     return speed, rows
 
 
@@ -336,12 +365,10 @@ def fit_greybox(machine: Machine, pairs: Sequence[Pair]) -> GreyBox:
     coef = np.zeros((d, len(TERMS)))
     w, cv, cv_lin, rms0 = np.zeros(d), np.zeros(d), np.zeros(d), np.zeros(d)
     notes = []
-    for i, (F, r, pos, step, folds) in enumerate(rows):
-        rms0[i] = float(np.sqrt(np.mean(r**2)))
+    for i, row in enumerate(rows):
         if speed[i] <= 0:
             notes.append(f"axis {machine.axes[i]} did not move in the stored pairs: no terms")
-            cv[i] = cv_lin[i] = rms0[i]
             continue
-        coef[i], w[i], cv[i], cv_lin[i] = _axis_fit(F, r, pos, step, folds)
+        coef[i], w[i], cv[i], cv_lin[i], rms0[i] = _axis_fit(row)
     n = sum(p.u.shape[0] for p in pairs)
     return GreyBox(machine, coef, w, speed, cv, cv_lin, rms0, n, tuple(notes))

@@ -114,7 +114,7 @@ def choose_per_segment(
     leaving it out where it is not -- and a tie keeps the stored signal. An unmatched
     segment has only the model. Where the choice changes between segments the two inputs
     are blended over a band of ``BAND_SAMPLES`` samples. Returns the input, the choice per
-    segment ("stored" or "model") and per segment the predicted RMS input errors of the
+    segment ("stored" or "model") and per segment the predicted RMS output errors of the
     stored signal (inf where nothing matched) and of the model-only input.
     """
     model_err = float(np.sqrt(np.mean(gb.cv_rms**2)))

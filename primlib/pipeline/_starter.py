@@ -304,6 +304,7 @@ class WarmStarter:
         law: str = "norm-optimal",
         tol: float | None = None,
         contour: bool = True,
+        origin: Any = None,
     ) -> LearnRun:
         """Warm start (unless ``cold``), then ILC on the machine's model.
 
@@ -325,6 +326,8 @@ class WarmStarter:
             Stop when the RMS error falls below this (user units).
         contour : bool
             Also compute the RMS contour error per trial.
+        origin : array of shape (d,), optional
+            Where the path starts on the machine (absolute), for the warm start.
 
         Returns
         -------
@@ -341,7 +344,7 @@ class WarmStarter:
         ws = None
         if not cold:
             try:
-                ws = self.warm_start(traj, machine, eps, band=band)
+                ws = self.warm_start(traj, machine, eps, band=band, origin=origin)
             except NoMatchError as exc:
                 notes.append(f"no warm start ({exc}); starting from zero")
         res = learn_on_model(
@@ -384,10 +387,10 @@ def _choice_text(choice: str, predicted: tuple[float, float]) -> str:
     """Why a segment uses what it uses, in one clause."""
     stored, model = predicted
     if not np.isfinite(stored):
-        return f"model-only input (nothing stored matched; predicted input error {model:.3g})"
+        return f"model-only input (nothing stored matched; predicted output error {model:.3g})"
     what = "stored signal carried over" if choice == "stored" else "model-only input"
     return (
-        f"{what} (predicted input error: stored {stored:.3g}, model-only {model:.3g}; "
+        f"{what} (predicted output error: stored {stored:.3g}, model-only {model:.3g}; "
         f"{'in place or translated' if stored == 0 else 'rotated or time-scaled'})"
     )
 
