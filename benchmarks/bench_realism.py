@@ -13,8 +13,9 @@ a 20 Hz structural mode (damping 0.05); and all of them together.
 The library is learned ON that machine, as a real one would be: each of the 14 example
 primitives (scripts/build_example_library.py) runs at its own place on the table, trial after
 trial with the machine's noise and disturbance, under primlib's noise-aware trial learner
-(:class:`primlib.ilc.TrialLearner`, norm-optimal on the nominal model), and the last input
-run is stored with where it ran. New paths, of three kinds:
+(:class:`primlib.ilc.TrialLearner`, norm-optimal on the nominal model) until its stop rule
+says it reached the noise floor (at most 30 trials), and the last input run is stored with
+where it ran. New paths, of three kinds:
 
 - (i) in place: a primitive run again where it was learned (a repeated fixture);
 - (ii) translated: a primitive run 20-80 mm away (other ripple phase, same motion);
@@ -103,7 +104,7 @@ def realistic(nominal: Machine, deps: dict[str, float], seed: int) -> RealisticM
     )
 
 
-def run_series(true, learner, origin, u0, trials: int, first_trial: int):
+def run_series(true, learner, origin, u0, trials: int, first_trial: int, stop: bool = False):
     """The trial learner from ``u0``: the true RMS error of each trial (noise-free motion)
     and the inputs run. One learner per path (its law's factorisations are kept on it)."""
     ref = learner.reference
@@ -114,7 +115,10 @@ def run_series(true, learner, origin, u0, trials: int, first_trial: int):
         outputs.append(runner.run(u))
         inputs.append(u)
         errors.append(rms(ref - runner.true[-1]))
-        u = learner.update(np.stack(inputs), np.stack(outputs)).u
+        step = learner.update(np.stack(inputs), np.stack(outputs))
+        if stop and step.converged:
+            break
+        u = step.u
     return np.array(errors), inputs
 
 
@@ -128,8 +132,11 @@ def learn_library(lib: Library, true, nominal: Machine, rng, trials: int) -> lis
         ref = traj.sample(nominal.dt)
         ref = ref - ref[0]
         learner = TrialLearner(nominal, ref)
-        errors, inputs = run_series(true, learner, origin, invert(nominal, ref), trials, 0)
-        # the input of the last trial run: what a finished series stores
+        errors, inputs = run_series(
+            true, learner, origin, invert(nominal, ref), trials, 0, stop=True
+        )
+        # the input of the last trial run, at the learner's stop rule (the noise floor) or
+        # after ``trials``: what a finished series stores
         lib.add(traj, inputs[-1], "xyz", name=stem, origin=origin)
         placed.append({"stem": stem, "points": pts, "origin": origin, "final": errors[-1]})
     return placed
@@ -250,7 +257,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--paths", type=int, default=3, help="paths per kind")
     ap.add_argument("--trials", type=int, default=6, help="ILC trials per start")
-    ap.add_argument("--library-trials", type=int, default=10)
+    ap.add_argument("--library-trials", type=int, default=30, help="at most, per primitive")
     ap.add_argument("--settings", default="all", help="comma-separated names, or all")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help="1 path per kind, 3 trials")

@@ -23,6 +23,7 @@ import click
 from primlib._errors import InputError
 from primlib.cli import main
 from primlib.cli._library import _db, _open_library, _open_waiting
+from primlib.cli._options import parse_origins
 
 if TYPE_CHECKING:
     import numpy as np
@@ -41,19 +42,6 @@ __all__ = ["ingest"]
 _DT_RTOL = 1e-6
 # Exit status of a command stopped by Ctrl-C (128 + SIGINT), as shells report it.
 _INTERRUPTED = 130
-
-
-def _parse_origin(ctx: click.Context, param: click.Parameter, values: tuple[str, ...]):
-    """``--origin X,Y[,Z]`` values as tuples of floats (the store checks the count)."""
-    out = []
-    for text in values:
-        try:
-            out.append(tuple(float(v) for v in text.split(",")))
-        except ValueError:
-            raise click.BadParameter(
-                f"expected comma-separated numbers X,Y[,Z], got {text!r}"
-            ) from None
-    return tuple(out)
 
 
 def _signal_for(path: Path) -> Path:
@@ -226,7 +214,7 @@ def _report(ctx: click.Context, files, items, result: AddResult, machine_name: s
     "--origin",
     "origins",
     multiple=True,
-    callback=_parse_origin,
+    callback=parse_origins,
     metavar="X,Y[,Z]",
     help="Where the primitive ran: the machine's absolute position at the path's start when "
     "its signal was learned, one per PATH, in order (default: unknown).",

@@ -8,7 +8,6 @@ converged input as a new primitive, so the library grows with every path it lear
 from __future__ import annotations
 
 import json
-import re
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -18,7 +17,8 @@ import click
 from primlib._errors import InputError
 from primlib.cli import main
 from primlib.cli._library import _open_waiting
-from primlib.cli._output import FIGURE_FORMATS, check_output
+from primlib.cli._options import parse_origin
+from primlib.cli._output import FIGURE_FORMATS, check_output, segment_lines
 from primlib.pipeline import LAWS
 
 if TYPE_CHECKING:
@@ -40,11 +40,6 @@ def _check_options(eps: float | None, tol: float | None, band: float | None) -> 
         raise InputError(f"--tol: expected a tolerance > 0, got {tol}")
     if band is not None and not band >= 0:
         raise InputError(f"--band: expected a width >= 0 s, got {band}")
-
-
-def _segment_lines(sources: tuple[str, ...]) -> list[str]:
-    """The warm start's per-segment sources, numbered from 1 like ``primlib match``."""
-    return [f"segment {j}: " + re.sub(r"^segment \d+: ", "", s) for j, s in enumerate(sources, 1)]
 
 
 def _as_json(path: Path, machine_name: str, run: LearnRun, cold: LearnRun | None, new_id) -> str:
@@ -82,7 +77,7 @@ def _as_text(run: LearnRun) -> list[str]:
     lines = []
     if run.warm is not None:
         lines.append(f"warm start from {len(run.warm.match.segments)} segment(s):")
-        lines += [f"  {line}" for line in _segment_lines(run.warm.sources)]
+        lines += [f"  {line}" for line in segment_lines(run.warm.sources)]
     rms, crms = np.asarray(run.result.rms_total), run.contour
     lines.append(
         f"{'iteration':>9}  {'rms':>12}" + ("" if crms is None else f"  {'contour rms':>12}")
@@ -150,6 +145,13 @@ def _plot(plot_file: Path, trajectory, run: LearnRun, cold: LearnRun | None) -> 
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write a figure: path and segments, u0 with bands, RMS warm vs cold.",
 )
+@click.option(
+    "--origin",
+    metavar="X,Y[,Z]",
+    callback=parse_origin,
+    help="Where the path starts on the machine, absolute: the warm start's grey-box model "
+    "evaluates its position-dependent terms (force ripple) there. Default: unknown.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 @click.pass_context
 def learn(
@@ -165,6 +167,7 @@ def learn(
     ingest: bool,
     name: str | None,
     plot_file: Path | None,
+    origin: tuple[float, ...] | None,
     as_json: bool,
 ) -> None:
     """Learn the input for PATH (CSV t,x,y[,z]) by ILC on the machine's model.
@@ -189,6 +192,8 @@ def learn(
     trajectory = read_path(path)
     db = ctx.find_root().obj["db"]
     opts = {"iterations": iterations, "eps": eps, "band": band, "law": law, "tol": tol}
+    if origin is not None:
+        opts["origin"] = origin
     # Learn with the library open read-only (other readers and writers are not locked out
     # for the whole run); take the write lock only to store the result.
     with Library(db, read_only=True, create=False) as lib:

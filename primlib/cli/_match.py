@@ -17,6 +17,7 @@ import click
 
 from primlib._errors import InputError
 from primlib.cli import main
+from primlib.cli._options import parse_origin
 from primlib.cli._progress import stderr_progress
 from primlib.defaults import TIME_SCALE
 
@@ -117,6 +118,13 @@ def _check_numbers(eps: float | None, min_segment: float | None) -> None:
     default=None,
     help="Also build the warm-start input from the match and write it as a signal CSV.",
 )
+@click.option(
+    "--origin",
+    metavar="X,Y[,Z]",
+    callback=parse_origin,
+    help="Where the path starts on the machine, absolute (for --out): the grey-box model's "
+    "position-dependent terms (force ripple) are evaluated there. Default: unknown.",
+)
 @click.pass_context
 def match(
     ctx: click.Context,
@@ -129,6 +137,7 @@ def match(
     as_json: bool,
     plot_file: Path | None,
     out_file: Path | None,
+    origin: tuple[float, ...] | None,
 ) -> None:
     """Match PATH_CSV (header t,x,y or t,x,y,z) against a machine's primitives.
 
@@ -171,6 +180,8 @@ def match(
             kw["progress"] = stderr_progress("match: path samples covered", after=2.0, every=1.0)
         ws = None
         if out_file is not None:
+            if origin is not None:
+                kw["origin"] = origin
             ws = lib.warm_start(traj, machine=machine_name, eps=e, **kw)
             mt = ws.match
         else:
@@ -195,7 +206,7 @@ def match(
     click.echo(_summary(mt, path_csv, machine_name, e, rotation))
     click.echo(_table(mt, traj.duration))
     if out_file is not None:
-        click.echo(f"warm-start input written to {out_file}")
+        _report_warm(ws, out_file)
     if plot_file is not None:
         click.echo(f"figure written to {plot_file}")
 
@@ -209,6 +220,14 @@ def _summary(mt, path_csv: Path, machine_name: str, eps: float, rotation: str) -
         f"eps {eps:.4g}, rotation {rotation}, "
         f"{info.get('probes', 0)} probes in {info.get('seconds', 0.0):.2f} s"
     )
+
+
+def _report_warm(ws, out_file: Path) -> None:
+    """What each segment of the warm start used, and where it was written."""
+    from primlib.cli._output import segment_lines
+
+    click.echo("\n".join(segment_lines(ws.sources)))
+    click.echo(f"warm-start input written to {out_file}")
 
 
 def _as_json(mt, path_csv: Path, duration: float, out_file, plot_file) -> str:

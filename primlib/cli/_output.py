@@ -8,12 +8,13 @@ one sentence and exit 2, so no long computation is thrown away.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterable
 from pathlib import Path
 
 from primlib._errors import InputError
 
-__all__ = ["check_output", "FIGURE_FORMATS", "TABLE_FORMATS"]
+__all__ = ["check_output", "segment_lines", "FIGURE_FORMATS", "TABLE_FORMATS"]
 
 # What matplotlib's Agg-based savefig writes without extra packages.
 FIGURE_FORMATS = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
@@ -65,3 +66,8 @@ def check_output(
     for f in inputs:
         if f is not None and Path(f).exists() and p.exists() and p.resolve() == Path(f).resolve():
             raise InputError(f"{option} {p}: is also an input of this command; choose another file")
+
+
+def segment_lines(sources: tuple[str, ...]) -> list[str]:
+    """The warm start's per-segment sources, numbered from 1 like ``primlib match``."""
+    return [f"segment {j}: " + re.sub(r"^segment \d+: ", "", s) for j, s in enumerate(sources, 1)]

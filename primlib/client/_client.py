@@ -124,6 +124,9 @@ def warm_start_from_dict(d: dict[str, Any], path: Any = None) -> Any:
         sources=tuple(d["sources"]),
         methods=tuple(d["methods"]),
         notes=tuple(d["notes"]),
+        model_u=None if d.get("model_u") is None else np.asarray(d["model_u"], dtype=float),
+        choices=tuple(d.get("choices", ())),
+        predicted=tuple(float(p) for p in d.get("predicted", ())),
     )
 
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from primlib._errors import NoMatchError
+from primlib._errors import InputError, NoMatchError
 from primlib.greybox import GreyBox, fit_greybox
 from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
@@ -187,6 +187,7 @@ class WarmStarter:
         """
         traj = as_trajectory(path)
         m = self.store.machine(machine)
+        origin = check_origin(origin, m.dim)
         gb = self.greybox(m, self.store.bank(machine))
         pts = traj.sample(m.dt)
         return gb.inverse(pts - pts[0], origin), gb
@@ -221,8 +222,7 @@ class WarmStarter:
         band, method : optional
             Transition band width (s) and time-scaling method of :func:`primlib.splice.splice`.
         refine : bool
-            Transform on the model refined on stored (input, path) pairs
-            (:meth:`refined_model`): they say how the real machine differs from its model.
+            Transform on the model refined on the stored pairs (:meth:`refined_model`).
         correction : Correction, optional
             Residual correction of :func:`primlib.splice.splice` (default
             :class:`~primlib.splice.ErrorCorrection`; the designs it was compared with are in
@@ -230,8 +230,8 @@ class WarmStarter:
         match : Match, optional
             A match already computed for this path and machine.
         origin : array of shape (d,), optional
-            Where the path starts on the machine (absolute coordinates); position-dependent
-            terms (force ripple) are evaluated there. None: unknown, those terms left out.
+            Where the path starts on the machine (absolute); ripple terms are evaluated
+            there. None: unknown, left out.
         greybox : bool
             Split the stored signals by the machine's grey-box model: the linear part
             carried by superposition, friction, ripple and bias re-evaluated on the new
@@ -251,6 +251,7 @@ class WarmStarter:
         """
         traj = as_trajectory(path)
         m = self.store.machine(machine)
+        origin = check_origin(origin, m.dim)
         if match is None:
             match = self.match(traj, machine, eps, **kw)
         ids = sorted({s.primitive for s in match.segments if s.primitive is not None})
@@ -381,6 +382,22 @@ def _grey_result(res, m, match, model, gb, ref, origin) -> WarmStart:
         predicted=tuple(min(p) for p in predicted),
         sources=tuple(f"{s}; {c}" for s, c in zip(base.sources, used, strict=True)),
     )
+
+
+def check_origin(origin: Any, d: int) -> np.ndarray | None:
+    """``origin`` as d finite coordinates (None stays None); else one sentence why not."""
+    if origin is None:
+        return None
+    try:
+        o = np.asarray(origin, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        o = np.full(0, np.nan)
+    if o.shape != (d,) or not np.all(np.isfinite(o)):
+        raise InputError(
+            f"origin: expected {d} finite coordinates (where the path starts on the machine), "
+            f"got {np.asarray(origin).tolist()!r}"
+        )
+    return o
 
 
 def _choice_text(choice: str, predicted: tuple[float, float]) -> str:

@@ -206,7 +206,7 @@ def signal_of(body: Mapping[str, Any], machine: Any, t: np.ndarray) -> np.ndarra
 
 
 MATCH_FIELDS = ("eps", "rotation", "time_scale")
-WARM_FIELDS = (*MATCH_FIELDS, "band", "method", "refine", "correction")
+WARM_FIELDS = (*MATCH_FIELDS, "band", "method", "refine", "correction", "origin", "greybox")
 
 
 def match_options(body: Mapping[str, Any], traj: Any) -> tuple[float, dict[str, Any]]:
@@ -244,8 +244,16 @@ def warm_options(body: Mapping[str, Any], traj: Any) -> tuple[float, dict[str, A
     for key in ("method", "correction"):
         if body.get(key) is not None:
             kw[key] = optional_str(body, key)
-    if body.get("refine") is not None:
-        kw["refine"] = as_bool("refine", body["refine"])
+    for key in ("refine", "greybox"):
+        if body.get(key) is not None:
+            kw[key] = as_bool(key, body[key])
+    origin = body.get("origin")
+    if origin is not None:
+        if isinstance(origin, str):
+            origin = origin.split(",")
+        if not isinstance(origin, (list, tuple)):
+            raise BadRequest(f"origin: expected a list of coordinates, got {origin!r}")
+        kw["origin"] = [_number("origin", v) for v in origin]
     return eps, kw
 
 

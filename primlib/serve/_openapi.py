@@ -46,6 +46,12 @@ _WARM_PROPS = {
     "method": {"enum": ["auto", "model", "direct"]},
     "refine": {"type": "boolean"},
     "correction": {"enum": ["error", "input", "output", "junction", "none"]},
+    "origin": {
+        "type": "array",
+        "items": {"type": "number"},
+        "description": "where the path starts on the machine (absolute): ripple terms there",
+    },
+    "greybox": {"type": "boolean", "description": "use the grey-box model (default true)"},
 }
 
 

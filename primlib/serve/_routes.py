@@ -248,6 +248,8 @@ def warm_start_dict(ws: Any, duration: float) -> dict[str, Any]:
     d["duration"] = duration
     d["t"] = np.asarray(ws.t, dtype=float).tolist()
     d["u"] = np.asarray(ws.u, dtype=float).tolist()
+    if ws.model_u is not None:
+        d["model_u"] = np.asarray(ws.model_u, dtype=float).tolist()
     d["sample_segment"] = np.asarray(ws.sample_segment).astype(int).tolist()
     return d
 
