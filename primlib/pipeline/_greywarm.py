@@ -25,12 +25,13 @@ from dataclasses import replace
 import numpy as np
 
 from primlib.defaults import BAND_SAMPLES
-from primlib.greybox import GreyBox, Pair
+from primlib.greybox import NONLINEAR, POSITION, TERMS, GreyBox, Pair
 from primlib.splice import StoredSignal
 from primlib.store import Bank
 
 __all__ = ["bank_origins", "bank_pairs", "choose_per_segment", "linear_parts"]
 
+_NONLINEAR_TERMS = [TERMS.index(t) for t in NONLINEAR + POSITION]
 _IN_PLACE_TOL = 1e-6  # rotation, time scale: |R - I|, |k - 1| below this is "not transformed"
 
 
@@ -108,22 +109,29 @@ def choose_per_segment(
     The model-only input's predicted error is the grey-box model's cross-validated input
     error (RMS over axes): what it misses on motion it was not fitted to. The stored
     signal's is zero for a piece neither rotated nor time-scaled (a translation moves every
-    term the model has and the rest of the stored input is carried exactly); for a rotated
-    or time-scaled piece it is the same CV error -- the part of the stored input the model
-    does not explain is carried by superposition, right where it is linear, as wrong as
-    leaving it out where it is not -- and a tie keeps the stored signal. An unmatched
-    segment has only the model. Where the choice changes between segments the two inputs
-    are blended over a band of ``BAND_SAMPLES`` samples. Returns the input, the choice per
-    segment ("stored" or "model") and per segment the predicted RMS output errors of the
-    stored signal (inf where nothing matched) and of the model-only input.
+    term the model has and the rest of the stored input is carried exactly). A rotated or
+    time-scaled piece carries by superposition the part of the stored input the model does
+    not explain: right if that part is linear, so on a machine where the fit found no
+    friction and no ripple its predicted error is the model's (a tie keeps the stored
+    signal); where it found them, the unexplained part is likely of their kind and does not
+    transform, so the prediction is what the linear model alone misses (``rms_nominal``).
+    An unmatched segment has only the model. Where the choice changes between segments the
+    two inputs are blended over a band of ``BAND_SAMPLES`` samples. Returns the input, the
+    choice per segment ("stored" or "model") and per segment the predicted RMS output
+    errors of the stored signal (inf where nothing matched) and of the model-only input.
     """
     model_err = float(np.sqrt(np.mean(gb.cv_rms**2)))
+    # what a transformed stored signal may carry wrongly: on a machine the data show to be
+    # linear nothing (superposition is exact, it misses what the model misses); where the
+    # model needed nonlinear terms, up to all the linear model alone misses
+    nonlinear = bool(np.any(gb.coef[:, _NONLINEAR_TERMS] != 0))
+    transformed_err = float(np.sqrt(np.mean(gb.rms_nominal**2))) if nonlinear else model_err
     weight = np.zeros(u_model.shape[0])
     choices, predicted = [], []
     for j, seg in enumerate(segments):
         stored_err = np.inf
         if seg.primitive is not None:
-            stored_err = model_err if _transformed(seg) else 0.0
+            stored_err = transformed_err if _transformed(seg) else 0.0
         use = stored_err <= model_err
         choices.append("stored" if use else "model")
         predicted.append((stored_err, model_err))

@@ -147,9 +147,10 @@ class WarmStarter:
             self.refined.popitem(last=False)
         return model
 
-    def greybox(self, machine: Machine, bank: Bank) -> GreyBox:
-        """The grey-box model fitted to all of the machine's stored pairs (cached)."""
-        key = (repr(machine.to_dict()), tuple(int(i) for i in np.asarray(bank.ids)))
+    def greybox(self, machine: Machine, bank: Bank, *, linear: bool = True) -> GreyBox:
+        """The grey-box model fitted to all of the machine's stored pairs (cached);
+        ``linear``: with the linear terms (not beside a refined model)."""
+        key = (repr(machine.to_dict()), tuple(int(i) for i in np.asarray(bank.ids)), linear)
         hit = self.greyboxes.get(key)
         if hit is None:
             pairs = bank_pairs(bank)
@@ -157,7 +158,7 @@ class WarmStarter:
                 raise NoMatchError(
                     f"machine {machine.name!r} has no stored primitives to fit a model to"
                 )
-            hit = self.greyboxes[key] = fit_greybox(machine, pairs)
+            hit = self.greyboxes[key] = fit_greybox(machine, pairs, linear=linear)
             while len(self.greyboxes) > self.refine_cache:
                 self.greyboxes.popitem(last=False)
         self.greyboxes.move_to_end(key)
@@ -188,7 +189,7 @@ class WarmStarter:
         traj = as_trajectory(path)
         m = self.store.machine(machine)
         origin = check_origin(origin, m.dim)
-        gb = self.greybox(m, self.store.bank(machine))
+        _, gb, _ = self._models(m, self.store.bank(machine), [], {}, True, True)
         pts = traj.sample(m.dt)
         return gb.inverse(pts - pts[0], origin), gb
 
@@ -278,16 +279,16 @@ class WarmStarter:
         """(refined model or None, grey-box model or None, the stored signals to splice).
 
         The grey-box terms are fitted beside the nominal model, the linear model is refined
-        on what they leave of the stored inputs, and the terms are fitted again beside the
-        refined model; the splice then carries the stored inputs' linear parts.
+        on what they leave of the stored inputs, and the nonlinear terms are fitted again
+        beside the refined model; the splice then carries the stored inputs' linear parts.
         """
         gb = model = None
         if greybox:
             gb = self.greybox(m, bank)
-        if refine and stored and not m.feedback:
+        if refine and (stored or gb is not None) and not m.feedback:
             model = self.refined_model(m, bank, ids, gb)
             if gb is not None:
-                gb = self.greybox(model.machine, bank)
+                gb = self.greybox(model.machine, bank, linear=False)
         if gb is not None:
             stored = linear_parts(gb, bank, stored)
         return model, gb, stored

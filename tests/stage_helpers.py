@@ -1,0 +1,40 @@
+"""The example stage (a nonlinear linear-motor table) and converged pairs learned on it,
+shared by the grey-box and warm-start tests."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from primlib.greybox import Pair
+from primlib.plant import Machine, invert
+
+ROOT = Path(__file__).resolve().parents[1]
+STAGE = Machine.from_json(ROOT / "examples" / "stage" / "stage.json")
+
+
+def nominal(stage=STAGE) -> Machine:
+    plants = {
+        a: ([p["K"] / stage.length_unit], [p["M"], p["B"], 0.0]) for a, p in stage.motors.items()
+    }
+    return Machine(stage.name, stage.dt, stage.axes, plants)
+
+
+def loop(n: int, size: float, turns: float, phase: float) -> np.ndarray:
+    """A smooth rest-to-rest 2-D path relative to its start (mm)."""
+    s = np.linspace(0.0, 1.0, n)
+    s = s**3 * (10 - 15 * s + 6 * s**2)
+    a = 2 * np.pi * turns * s + phase
+    return np.c_[size * (np.cos(a) - np.cos(phase)) + 20 * s, size * (np.sin(a) - np.sin(phase))]
+
+
+def stage_pair(path: np.ndarray, origin, iterations: int = 12) -> Pair:
+    """The stage's converged pair for ``path`` at ``origin``: ILC (P-type on the nominal
+    inverse, as the library's inputs are learned) until the stage follows it."""
+    nom = nominal()
+    u = invert(nom, path)
+    for _ in range(iterations):
+        e = path - STAGE.simulate(u, start=origin)
+        u = u + invert(nom, e)
+    return Pair(u, path, np.asarray(origin, float))

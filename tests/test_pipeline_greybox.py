@@ -1,0 +1,94 @@
+"""The warm start with the grey-box model, through a real library file, on the example stage
+(friction, force ripple): in place it is the stored signal; moved or rotated it re-evaluates
+friction and ripple where the path now runs; it says what each segment used."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from stage_helpers import STAGE, loop, nominal, stage_pair
+
+from primlib import InputError
+from primlib.nurbs import Trajectory
+from primlib.pipeline import Library
+from primlib.plant import invert
+
+ORIGINS = [(40.0, 25.0), (75.0, 10.0), (10.0, 60.0)]
+SHAPES = [(1001, 12.0, 1.0, 0.3), (1001, 8.0, 1.5, 1.7), (801, 15.0, 0.75, 2.9)]
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    """Three primitives learned on the stage where they ran, in a DuckDB file."""
+    db = tmp_path_factory.mktemp("grey") / "lib.duckdb"
+    with Library(db) as lib:
+        lib.add_machine(nominal())
+        for (n, size, turns, phase), origin in zip(SHAPES, ORIGINS, strict=True):
+            p = stage_pair(loop(n, size, turns, phase), origin)
+            traj = Trajectory.from_samples(p.y + p.origin, STAGE.dt)
+            lib.add(traj, p.u, "stage", name=f"loop-{n}-{turns}", origin=origin)
+    return db
+
+
+def _err(u, path, origin) -> float:
+    ref = path - path[0]
+    return float(np.sqrt(np.mean(np.sum((STAGE.simulate(u, start=origin) - ref) ** 2, axis=1))))
+
+
+def _rotated(points: np.ndarray, deg: float, to) -> np.ndarray:
+    a = np.deg2rad(deg)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    return (points - points[0]) @ R.T + np.asarray(to, float)
+
+
+def test_in_place_the_warm_start_is_the_stored_signal(library):
+    # the stored path itself, where it ran: both halves of the split add back exactly
+    with Library(library, read_only=True) as lib:
+        p = lib.get(int(lib.bank("stage").ids[0]))
+        ws = lib.warm_start(p.trajectory, "stage", origin=p.origin)
+    assert ws.choices == ("stored",)
+    assert ws.predicted == (0.0,)
+    # up to rounding that the inverse in the terms amplifies (about 1/dt^3 on this stage)
+    assert np.allclose(ws.u, p.signal, rtol=0, atol=1e-9 * np.max(np.abs(p.signal)))
+
+
+def test_moved_and_rotated_beats_the_model_inverse_and_says_what_it_used(library):
+    with Library(library, read_only=True) as lib:
+        bank = lib.bank("stage")
+        offs = np.asarray(bank.offsets)
+        pts = np.asarray(bank.points)[offs[0] : offs[1]]
+        new = _rotated(pts, 35.0, (120.0, 60.0))
+        traj = Trajectory.from_samples(new, STAGE.dt)
+        ws = lib.warm_start(traj, "stage", origin=new[0])
+        plain = lib.warm_start(traj, "stage", origin=new[0], greybox=False)
+    inverse = _err(invert(nominal(), new - new[0]), new, new[0])
+    warm = _err(ws.u, new, new[0])
+    assert warm < inverse / 10  # acceptance of issue 11 is 1/2
+    assert warm < _err(plain.u, new, new[0]) / 3  # friction and ripple spliced whole
+    assert _err(ws.model_u, new, new[0]) < inverse / 10
+    assert len(ws.choices) == len(ws.methods) == len(ws.predicted)
+    assert all("predicted output error" in s for s in ws.sources)
+    assert set(ws.to_dict()) >= {"choices", "predicted"}
+
+
+def test_translated_reevaluates_the_ripple(library):
+    # the same motion elsewhere: the stored signal's ripple belongs to the old place; the
+    # warm start with the new origin follows better than without telling it where
+    with Library(library, read_only=True) as lib:
+        bank = lib.bank("stage")
+        offs = np.asarray(bank.offsets)
+        pts = np.asarray(bank.points)[offs[1] : offs[2]]
+        new = pts + np.array([13.0, 21.0])  # not a multiple of the 30 mm pitch
+        traj = Trajectory.from_samples(new, STAGE.dt)
+        here = lib.warm_start(traj, "stage", origin=new[0])
+        unknown = lib.warm_start(traj, "stage")
+    assert _err(here.u, new, new[0]) < _err(unknown.u, new, new[0]) / 2
+
+
+@pytest.mark.parametrize("origin", [(1.0,), (1.0, np.nan), "here"])
+def test_a_bad_origin_is_refused(library, origin):
+    with Library(library, read_only=True) as lib:
+        bank = lib.bank("stage")
+        pts = np.asarray(bank.points)[: int(np.asarray(bank.offsets)[1])]
+        with pytest.raises(InputError, match="origin: expected 2 finite coordinates"):
+            lib.warm_start(Trajectory.from_samples(pts, STAGE.dt), "stage", origin=origin)
