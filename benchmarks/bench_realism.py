@@ -124,10 +124,12 @@ def run_series(true, learner, origin, u0, trials: int, first_trial: int, stop: b
     return np.array(errors), inputs
 
 
-def learn_library(lib: Library, true, nominal: Machine, rng, trials: int) -> list[dict]:
+def learn_library(
+    lib: Library, true, nominal: Machine, rng, trials: int, count: int | None = None
+) -> list[dict]:
     """Each example primitive learned on the machine at its own place; stored with it."""
     placed = []
-    for stem, T, shape in ex.PRIMITIVES:
+    for stem, T, shape in ex.PRIMITIVES[:count]:
         origin = rng.uniform(0.0, 1.0, 3) * (np.array(TABLE) - 60.0) + 10.0
         pts = ex.primitive_samples(shape, T, nominal.dt, origin)
         traj = Trajectory.from_samples(pts, nominal.dt)
@@ -188,7 +190,7 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
     t0 = time.perf_counter()
     with Library() as lib:
         lib.add_machine(nominal)
-        placed = learn_library(lib, true, nominal, rng, args.library_trials)
+        placed = learn_library(lib, true, nominal, rng, args.library_trials, args.primitives)
         t_lib = time.perf_counter() - t0
         rows: dict[str, list] = {k: [] for k in KINDS}
         for kind, paths in new_paths(placed, rng, args.paths, nominal.dt).items():
@@ -261,6 +263,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--trials", type=int, default=6, help="ILC trials per start")
     ap.add_argument("--library-trials", type=int, default=30, help="at most, per primitive")
     ap.add_argument("--settings", default="all", help="comma-separated names, or all")
+    ap.add_argument("--primitives", type=int, default=None, help="the first N only (smoke)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help="1 path per kind, 3 trials")
     ap.add_argument("--json", type=Path, help="write the figures here")

@@ -226,7 +226,8 @@ def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarr
         c = np.linalg.solve(G, b)
         return r2 - 2 * float(c @ b) + float(c @ G @ c)
 
-    grid = np.arange(w_lo, w_hi, np.pi / (4 * span))[:_GRID_MAX]
+    count = min(int((w_hi - w_lo) / (np.pi / (4 * span))) + 1, _GRID_MAX)
+    grid = np.linspace(w_lo, w_hi, max(count, 2))
     vals = np.array([sse(w) for w in grid])
     k = int(np.argmin(vals))
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]

@@ -1,0 +1,37 @@
+"""Smoke test of benchmarks/bench_realism.py: a tiny run of one setting goes end to end and
+its figures mean what they say (the full study is the benchmark's, not the suite's)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_realism  # noqa: E402
+
+
+@pytest.mark.slow
+def test_a_tiny_run_measures_every_start_on_every_kind():
+    out = bench_realism.main(
+        ["--settings", "ripple 2 %", "--paths", "1", "--trials", "2", "--library-trials", "3",
+         "--primitives", "3"]
+    )  # fmt: skip
+    (res,) = out["results"]
+    assert res["setting"] == "ripple 2 %"
+    for kind in bench_realism.KINDS:
+        (row,) = res["rows"][kind]
+        first = row["first"]
+        assert set(first) == set(bench_realism.STARTS)
+        assert all(np.isfinite(v) and v >= 0 for v in first.values())
+        # cold does not move an integrating machine: its error is the path's own size
+        assert first["cold"] > 10 * first["nominal"] > 0
+        assert row["floor"] >= bench_realism.FLOOR_MIN
+        assert set(row["choices"]) <= {"stored", "model"}
+    # in place, the library's own signal is what the machine needed there
+    in_place = res["rows"]["in place"][0]["first"]
+    assert in_place["warm"] < in_place["nominal"] / 10
