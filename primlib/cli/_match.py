@@ -197,9 +197,7 @@ def match(
 
         plot_match(plot_file, traj.at(np.linspace(0.0, 1.0, n)), mt, pieces)
     if ws is not None:
-        from primlib.io import write_signal_csv
-
-        write_signal_csv(out_file, ws.t, ws.u)
+        _write_warm(ws, out_file)
     if as_json:
         click.echo(_as_json(mt, path_csv, traj.duration, out_file, plot_file))
         return
@@ -220,6 +218,12 @@ def _summary(mt, path_csv: Path, machine_name: str, eps: float, rotation: str) -
         f"eps {eps:.4g}, rotation {rotation}, "
         f"{info.get('probes', 0)} probes in {info.get('seconds', 0.0):.2f} s"
     )
+
+
+def _write_warm(ws, out_file: Path) -> None:
+    from primlib.io import write_signal_csv
+
+    write_signal_csv(out_file, ws.t, ws.u)
 
 
 def _report_warm(ws, out_file: Path) -> None:
