@@ -180,8 +180,7 @@ def match(
             kw["progress"] = stderr_progress("match: path samples covered", after=2.0, every=1.0)
         ws = None
         if out_file is not None:
-            if origin is not None:
-                kw["origin"] = origin
+            kw.update({} if origin is None else {"origin": origin})
             ws = lib.warm_start(traj, machine=machine_name, eps=e, **kw)
             mt = ws.match
         else:
