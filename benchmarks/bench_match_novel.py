@@ -115,8 +115,13 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         if old is not None:
             b = statistics.median(old[label]["times"])
             base, ratio = f"{b:.2f}", f"{b / med:.1f}x"
-            same = r["segments"] == old[label]["segments"]
-            assert same, f"{label}: the segmentation differs from the baseline's"
+            cuts = [[e for e, _ in s] for s in r["segments"]]
+            assert cuts == [[e for e, _ in s] for s in old[label]["segments"]], (
+                f"{label}: the cuts differ from the baseline's"
+            )
+            changed = sum(a != b for x, y in zip(r["segments"], old[label]["segments"],
+                          strict=True) for a, b in zip(x, y, strict=True))  # fmt: skip
+            base += f" ({changed} primitive(s) now better)" if changed else ""
         nseg = statistics.median(len(s) for s in r["segments"])
         print(f"| {label} | {med:.2f} | {max(r['times']):.2f} | {nseg:g} | "
               f"{100 * statistics.median(r['fraction']):.0f} % | {base} | {ratio} |")  # fmt: skip
