@@ -271,6 +271,12 @@ def test_match_json_and_csv_equal_the_library(world):
         "POST", f"/match?machine=xyz&eps={EPS}", body, content_type="text/csv"
     )
     assert status == 200 and got_csv["segments"] == got["segments"]
+    # the matcher's min_segment goes through (a match longer than the path: all unmatched)
+    body = {"machine": "xyz", "path": world["query_points"].tolist(), "eps": EPS}
+    status, whole, _ = s.call("POST", "/match", {**body, "min_segment": 1e6})
+    assert status == 200 and whole["matched_fraction"] == 0.0
+    status, bad, _ = s.call("POST", "/match", {**body, "min_segment": -1})
+    assert status == 422 and "min_segment" in bad["error"]
 
 
 def test_warm_start_json_and_csv_equal_the_library(world):

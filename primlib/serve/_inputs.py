@@ -205,7 +205,7 @@ def signal_of(body: Mapping[str, Any], machine: Any, t: np.ndarray) -> np.ndarra
     raise BadRequest(f"signal: expected a list of rows or CSV text, got {type(value).__name__}")
 
 
-MATCH_FIELDS = ("eps", "rotation", "time_scale")
+MATCH_FIELDS = ("eps", "rotation", "time_scale", "min_segment")
 WARM_FIELDS = (*MATCH_FIELDS, "band", "method", "refine", "correction", "origin", "greybox")
 
 
@@ -233,6 +233,8 @@ def match_options(body: Mapping[str, Any], traj: Any) -> tuple[float, dict[str, 
         if not isinstance(scale, (list, tuple)) or len(scale) != 2:
             raise BadRequest(f"time_scale: expected two numbers (low, high), got {scale!r}")
         kw["time_scale"] = (_number("time_scale", scale[0]), _number("time_scale", scale[1]))
+    if body.get("min_segment") is not None:
+        kw["min_segment"] = _number("min_segment", body["min_segment"])
     return eps, kw
 
 

@@ -39,6 +39,7 @@ _MATCH_PROPS = {
     "eps": {"type": "number", "description": "Kabsch RMSD tolerance (default 3e-4 of extent)"},
     "rotation": {"enum": ["full", "z", "none"]},
     "time_scale": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2},
+    "min_segment": {"type": "number", "description": "shortest match worth a junction, s"},
 }
 _WARM_PROPS = {
     **_MATCH_PROPS,
