@@ -109,13 +109,10 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
     return out
 
 
-def _steps(jtj, g, lam, z, cvec):
-    """Damped Gauss–Newton steps under A z ≤ c: the free 2×2 solution where feasible, the
-    box QP of :func:`._refine.solve_box_qp2` elsewhere."""
-    dg = jtj[:, [0, 1], [0, 1]]
-    h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * np.eye(2)
-    det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
-    free = (
+def _free_step(h: np.ndarray, g: np.ndarray, det: np.ndarray) -> np.ndarray:
+    """The unconstrained minimisers of m 2x2 quadratics, h^-1 g by Cramer's rule; rows with
+    ``det <= 0`` are divided by 1 instead (meaningless: the callers reject those rows)."""
+    return (
         np.stack(
             [
                 h[:, 1, 1] * g[:, 0] - h[:, 0, 1] * g[:, 1],
@@ -125,6 +122,15 @@ def _steps(jtj, g, lam, z, cvec):
         )
         / np.where(det > 0, det, 1.0)[:, None]
     )
+
+
+def _steps(jtj, g, lam, z, cvec):
+    """Damped Gauss–Newton steps under A z ≤ c: the free 2×2 solution where feasible, the
+    box QP of :func:`._refine.solve_box_qp2` elsewhere."""
+    dg = jtj[:, [0, 1], [0, 1]]
+    h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * np.eye(2)
+    det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
+    free = _free_step(h, g, det)
     slack = cvec - z @ _AMAT.T
     ok = np.all(free @ _AMAT.T <= slack + 1e-9 * (1.0 + np.abs(cvec)), axis=1) & (det > 0)
     bad = np.flatnonzero(~ok)
@@ -159,16 +165,7 @@ def _box_qp_many(h: np.ndarray, g: np.ndarray, slack: np.ndarray, tol: np.ndarra
     order, the first best feasible one kept (zero if none improves)."""
     m = h.shape[0]
     det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
-    free = (
-        np.stack(
-            [
-                h[:, 1, 1] * g[:, 0] - h[:, 0, 1] * g[:, 1],
-                h[:, 0, 0] * g[:, 1] - h[:, 1, 0] * g[:, 0],
-            ],
-            axis=1,
-        )
-        / np.where(det > 0, det, 1.0)[:, None]
-    )
+    free = _free_step(h, g, det)
     # on line l (a_l·δ = slack_l): δ = δ_p + t·n_l, t minimising the quadratic along it
     dp = _AMAT[None] * (slack / np.einsum("la,la->l", _AMAT, _AMAT))[:, :, None]
     den = np.einsum("la,mab,lb->ml", _NORMALS, h, _NORMALS)

@@ -40,7 +40,7 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.plant._machine import Machine, register_kind
-from primlib.plant._spec import check_keys, check_number, read_note, write_note
+from primlib.plant._spec import check_kind, check_number, read_note, write_note
 
 __all__ = ["LinearMotor", "MOTOR_KEYS"]
 
@@ -341,11 +341,7 @@ class LinearMotor(Machine):
         InputError
             Unknown or missing keys, or any invalid field.
         """
-        if not isinstance(d, Mapping):
-            raise InputError(f"machine: expected a JSON object, got {type(d).__name__}")
-        if d.get("kind", cls.kind) != cls.kind:
-            raise InputError(f"machine kind: expected {cls.kind!r}, got {d.get('kind')!r}")
-        check_keys(d, _TOP_KEYS, ("name", "dt", "axes", "motors"))
+        check_kind(d, cls.kind, _TOP_KEYS, ("name", "dt", "axes", "motors"))
         m = cls(
             d["name"],
             d["dt"],

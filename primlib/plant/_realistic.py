@@ -58,7 +58,7 @@ from primlib.plant._departures import (
 )
 from primlib.plant._machine import Machine, register_kind
 from primlib.plant._realistic_loop import linear_plant, loop_kernel, run_axis
-from primlib.plant._spec import check_keys, read_note
+from primlib.plant._spec import check_kind, read_note
 
 __all__ = ["RealisticMachine", "TrialRunner"]
 
@@ -358,11 +358,7 @@ class RealisticMachine(Machine):
         InputError
             Unknown or missing keys, or any invalid field.
         """
-        if not isinstance(d, Mapping):
-            raise InputError(f"machine: expected a JSON object, got {type(d).__name__}")
-        if d.get("kind", cls.kind) != cls.kind:
-            raise InputError(f"machine kind: expected {cls.kind!r}, got {d.get('kind')!r}")
-        check_keys(d, _TOP_KEYS, ("name", "dt", "axes", "plants"))
+        check_kind(d, cls.kind, _TOP_KEYS, ("name", "dt", "axes", "plants"))
         axes = d["axes"]
         if not isinstance(axes, (list, tuple)):
             raise InputError(f"axes: expected a list of axis names, got {axes!r}")

@@ -190,6 +190,19 @@ def validate_pid(axis: str, spec: Any) -> dict[str, float]:
     return out
 
 
+def check_kind(
+    d: Any, kind: str, allowed: set[str], required: tuple[str, ...]
+) -> Mapping[str, Any]:
+    """A machine dictionary of ``kind`` (a missing ``"kind"`` is taken as it) with only
+    ``allowed`` keys and every ``required`` one; else one sentence why not."""
+    if not isinstance(d, Mapping):
+        raise InputError(f"machine: expected a JSON object, got {type(d).__name__}")
+    if d.get("kind", kind) != kind:
+        raise InputError(f"machine kind: expected {kind!r}, got {d.get('kind')!r}")
+    check_keys(d, allowed, required)
+    return d
+
+
 def check_keys(d: Mapping[str, Any], allowed: set[str], required: tuple[str, ...]) -> None:
     """A machine dictionary has only ``allowed`` keys and every ``required`` one."""
     unknown = sorted(set(d) - allowed)
