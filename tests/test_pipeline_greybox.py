@@ -85,10 +85,18 @@ def test_translated_reevaluates_the_ripple(library):
     assert _err(here.u, new, new[0]) < _err(unknown.u, new, new[0]) / 2
 
 
-@pytest.mark.parametrize("origin", [(1.0,), (1.0, np.nan), "here"])
-def test_a_bad_origin_is_refused(library, origin):
+@pytest.mark.parametrize(
+    "origin, message",
+    [
+        ((1.0,), r"origin: expected an origin of 2 coordinates \(axes x, y\), got \(1.0,\)"),
+        ((1.0, np.nan), "origin: expected a finite origin, got NaN or inf"),
+        ("here", r"origin: expected an origin of 2 coordinates \(axes x, y\), got 'here'"),
+    ],
+)
+def test_a_bad_origin_is_refused(library, origin, message):
+    # the store's check of a primitive's origin, the same sentence for a new path's
     with Library(library, read_only=True) as lib:
         bank = lib.bank("stage")
         pts = np.asarray(bank.points)[: int(np.asarray(bank.offsets)[1])]
-        with pytest.raises(InputError, match="origin: expected 2 finite coordinates"):
+        with pytest.raises(InputError, match=message):
             lib.warm_start(Trajectory.from_samples(pts, STAGE.dt), "stage", origin=origin)

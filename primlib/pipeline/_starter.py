@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from primlib._errors import InputError, NoMatchError
+from primlib._errors import NoMatchError
 from primlib.greybox import GreyBox, fit_greybox
 from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
@@ -28,7 +28,7 @@ from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
 from primlib.plant import Machine
 from primlib.splice import Correction, RefinedModel, refine_machine, splice
-from primlib.store import Bank, Store
+from primlib.store import Bank, Store, check_origin
 
 __all__ = ["WarmStarter", "as_trajectory"]
 
@@ -188,7 +188,7 @@ class WarmStarter:
         """
         traj = as_trajectory(path)
         m = self.store.machine(machine)
-        origin = check_origin(origin, m.dim)
+        origin = check_origin("origin", origin, m.axes)
         _, gb, _ = self._models(m, self.store.bank(machine), [], {}, True, True)
         pts = traj.sample(m.dt)
         return gb.inverse(pts - pts[0], origin), gb
@@ -252,7 +252,7 @@ class WarmStarter:
         """
         traj = as_trajectory(path)
         m = self.store.machine(machine)
-        origin = check_origin(origin, m.dim)
+        origin = check_origin("origin", origin, m.axes)
         if match is None:
             match = self.match(traj, machine, eps, **kw)
         ids = sorted({s.primitive for s in match.segments if s.primitive is not None})
@@ -383,22 +383,6 @@ def _grey_result(res, m, match, model, gb, ref, origin) -> WarmStart:
         predicted=tuple(min(p) for p in predicted),
         sources=tuple(f"{s}; {c}" for s, c in zip(base.sources, used, strict=True)),
     )
-
-
-def check_origin(origin: Any, d: int) -> np.ndarray | None:
-    """``origin`` as d finite coordinates (None stays None); else one sentence why not."""
-    if origin is None:
-        return None
-    try:
-        o = np.asarray(origin, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        o = np.full(0, np.nan)
-    if o.shape != (d,) or not np.all(np.isfinite(o)):
-        raise InputError(
-            f"origin: expected {d} finite coordinates (where the path starts on the machine), "
-            f"got {np.asarray(origin).tolist()!r}"
-        )
-    return o
 
 
 def _choice_text(choice: str, predicted: tuple[float, float]) -> str:

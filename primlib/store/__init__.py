@@ -17,7 +17,7 @@ from primlib.store._schema import MIGRATIONS, SCHEMA_VERSION, migrate
 from primlib.store._store import Store
 from primlib.store._trials import SeriesRecord, TrialRecord, TrialStore
 from primlib.store._types import AddResult, Bank, Primitive, PrimitiveInfo
-from primlib.store._validate import check_name, content_hash
+from primlib.store._validate import check_name, check_origin, content_hash
 
 __all__ = [
     "Store",
@@ -34,4 +34,5 @@ __all__ = [
     "migrate",
     "content_hash",
     "check_name",
+    "check_origin",
 ]
