@@ -20,12 +20,11 @@ per segment the warm start keeps whichever has the lower predicted error
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from primlib.defaults import BAND_SAMPLES
 from primlib.greybox import NONLINEAR, POSITION, TERMS, GreyBox, Pair
+from primlib.pipeline._warm import stored_signals
 from primlib.splice import StoredSignal
 from primlib.store import Bank
 
@@ -37,10 +36,7 @@ _IN_PLACE_TOL = 1e-6  # rotation, time scale: |R - I|, |k - 1| below this is "no
 
 def bank_origins(bank: Bank) -> np.ndarray:
     """Absolute start of each primitive, shape (k, d), NaN where the library does not know."""
-    origins = getattr(bank, "origins", None)
-    if origins is None:
-        return np.full((len(bank.ids), bank.dim), np.nan)
-    return np.asarray(origins, dtype=float).reshape(len(bank.ids), bank.dim)
+    return np.asarray(bank.origins, dtype=float).reshape(len(bank.ids), bank.dim)
 
 
 def bank_pairs(bank: Bank) -> list[Pair]:
@@ -59,38 +55,23 @@ def bank_pairs(bank: Bank) -> list[Pair]:
     return out
 
 
-def _nonlinear_at(gb: GreyBox, points: np.ndarray, origin) -> np.ndarray:
-    return gb.terms(points - points[0], origin)[2]
-
-
-def linear_parts(
-    gb: GreyBox, bank: Bank, stored: dict[int, StoredSignal]
-) -> dict[int, StoredSignal]:
-    """The stored signals minus the nonlinear terms the grey-box model gives them.
+def linear_parts(gb: GreyBox, bank: Bank, ids, *, versions: bool = True) -> dict[int, StoredSignal]:
+    """The stored signals of ``ids`` minus the nonlinear terms the grey-box model gives them
+    (:func:`~primlib.pipeline.stored_signals` with that adjustment).
 
     Versions at other durations (for eq. (20)) lose their own terms, evaluated on their own
-    motion (a version is the same path run faster or slower: other velocities, same places).
+    motion where they ran (a version is the same path run faster or slower).
     """
-    ids = np.asarray(bank.ids)
     offs = np.asarray(bank.offsets)
     pts = np.asarray(bank.points)
     org = bank_origins(bank)
-    durations = np.asarray(bank.durations, dtype=float)
-    out = {}
-    for pid, s in stored.items():
-        i = int(np.flatnonzero(ids == pid)[0])
+
+    def linear(i: int, signal: np.ndarray) -> np.ndarray:
+        p = pts[offs[i] : offs[i + 1]]
         origin = org[i] if np.all(np.isfinite(org[i])) else None
-        versions = []
-        for sig, dur in s.versions:
-            j = int(np.flatnonzero(np.isclose(durations, dur) & (np.diff(offs) == len(sig)))[0])
-            vp = pts[offs[j] : offs[j + 1]]
-            versions.append((sig - _nonlinear_at(gb, vp, origin), dur))
-        out[pid] = replace(
-            s,
-            signal=s.signal - _nonlinear_at(gb, s.points, origin),
-            versions=tuple(versions),
-        )
-    return out
+        return signal - gb.terms(p - p[0], origin)[2]
+
+    return stored_signals(bank, ids, versions=versions, adjust=linear)
 
 
 def _transformed(seg) -> bool:

@@ -136,9 +136,10 @@ class WarmStarter:
         if hit is not None:
             self.refined.move_to_end(key)
             return hit
-        stored = stored_signals(bank, chosen, versions=False)
-        if gb is not None:
-            stored = linear_parts(gb, bank, stored)
+        if gb is None:
+            stored = stored_signals(bank, chosen, versions=False)
+        else:
+            stored = linear_parts(gb, bank, chosen, versions=False)
         model = refine_machine(
             machine, [(s.signal, s.points - s.points[0]) for s in stored.values()]
         )
@@ -189,7 +190,7 @@ class WarmStarter:
         traj = as_trajectory(path)
         m = self.store.machine(machine)
         origin = check_origin("origin", origin, m.axes)
-        _, gb, _ = self._models(m, self.store.bank(machine), [], {}, True, True)
+        _, gb, _ = self._models(m, self.store.bank(machine), [], True, True)
         pts = traj.sample(m.dt)
         return gb.inverse(pts - pts[0], origin), gb
 
@@ -257,8 +258,7 @@ class WarmStarter:
             match = self.match(traj, machine, eps, **kw)
         ids = sorted({s.primitive for s in match.segments if s.primitive is not None})
         bank = self.store.bank(machine)
-        stored = stored_signals(bank, ids) if ids else {}
-        model, gb, stored = self._models(m, bank, ids, stored, refine, greybox)
+        model, gb, stored = self._models(m, bank, ids, refine, greybox)
         pts = traj.sample(m.dt)
         res = splice(
             m if model is None else model.machine,
@@ -275,7 +275,7 @@ class WarmStarter:
             return _warm_start_result(res, m, match, model)
         return _grey_result(res, m, match, model, gb, pts - pts[0], origin)
 
-    def _models(self, m: Machine, bank: Bank, ids, stored, refine: bool, greybox: bool):
+    def _models(self, m: Machine, bank: Bank, ids, refine: bool, greybox: bool):
         """(refined model or None, grey-box model or None, the stored signals to splice).
 
         The grey-box terms are fitted beside the nominal model, the linear model is refined
@@ -285,13 +285,15 @@ class WarmStarter:
         gb = model = None
         if greybox:
             gb = self.greybox(m, bank)
-        if refine and (stored or gb is not None) and not m.feedback:
+        if refine and (ids or gb is not None) and not m.feedback:
             model = self.refined_model(m, bank, ids, gb)
             if gb is not None:
                 gb = self.greybox(model.machine, bank, linear=False)
-        if gb is not None:
-            stored = linear_parts(gb, bank, stored)
-        return model, gb, stored
+        if not ids:
+            return model, gb, {}
+        if gb is None:
+            return model, gb, stored_signals(bank, ids)
+        return model, gb, linear_parts(gb, bank, ids)
 
     # ------------------------------------------------------------------ learn
     def learn(

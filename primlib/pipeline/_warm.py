@@ -8,7 +8,7 @@ primitive-matching paper.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -148,7 +148,11 @@ def find_versions(bank: Bank, index: int, tol: float = _VERSION_TOL) -> list[int
 
 
 def stored_signals(
-    bank: Bank, ids: Iterable[int], *, versions: bool = True
+    bank: Bank,
+    ids: Iterable[int],
+    *,
+    versions: bool = True,
+    adjust: Callable[[int, np.ndarray], np.ndarray] | None = None,
 ) -> dict[int, StoredSignal]:
     """The splice's view of the given primitive ids, read from a bank.
 
@@ -159,6 +163,10 @@ def stored_signals(
         Primitive ids in the bank.
     versions : bool
         Also collect each primitive's versions at other durations (:func:`find_versions`).
+    adjust : callable, optional
+        ``adjust(i, signal)`` -> the signal to use for bank position ``i`` (each primitive's
+        and each version's own), e.g. its linear part
+        (:func:`primlib.pipeline._greywarm.linear_parts`).
 
     Returns
     -------
@@ -172,6 +180,11 @@ def stored_signals(
     ids_arr = np.asarray(bank.ids)
     offs = np.asarray(bank.offsets)
     out: dict[int, StoredSignal] = {}
+
+    def signal(i: int) -> np.ndarray:
+        sig = np.asarray(bank.signals)[offs[i] : offs[i + 1]]
+        return sig if adjust is None else adjust(i, sig)
+
     for pid in ids:
         where = np.flatnonzero(ids_arr == pid)
         if where.size == 0:
@@ -180,12 +193,9 @@ def stored_signals(
         sl = slice(offs[i], offs[i + 1])
         vers: tuple = ()
         if versions:
-            vers = tuple(
-                (np.asarray(bank.signals)[offs[v] : offs[v + 1]], float(bank.durations[v]))
-                for v in find_versions(bank, i)
-            )
+            vers = tuple((signal(v), float(bank.durations[v])) for v in find_versions(bank, i))
         out[int(pid)] = StoredSignal(
-            signal=np.asarray(bank.signals)[sl],
+            signal=signal(i),
             points=np.asarray(bank.points)[sl],
             duration=float(bank.durations[i]),
             name=bank.names[i],
