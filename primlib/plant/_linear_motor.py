@@ -40,7 +40,7 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.plant._machine import Machine, register_kind
-from primlib.plant._spec import check_kind, check_number, read_note, write_note
+from primlib.plant._spec import check_kind, check_number, check_start, read_note, write_note
 
 __all__ = ["LinearMotor", "MOTOR_KEYS"]
 
@@ -223,7 +223,7 @@ class LinearMotor(Machine):
     def initial_state(self, start=None) -> np.ndarray:
         """State at rest at ``start`` (user units, shape (d,); default 0): array (2, d) of
         absolute position (m) and velocity (m/s)."""
-        x0 = np.zeros(self.dim) if start is None else self._check_start(start)
+        x0 = self._check_start(start)
         return np.stack([x0 * self._unit, np.zeros(self.dim)])
 
     def advance(self, state: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -252,12 +252,7 @@ class LinearMotor(Machine):
         return state[0] / self._unit
 
     def _check_start(self, start) -> np.ndarray:
-        s = np.asarray(start, dtype=float).reshape(-1)
-        if s.shape != (self.dim,) or not np.all(np.isfinite(s)):
-            raise InputError(
-                f"start: expected {self.dim} finite coordinates (user units), got {start!r}"
-            )
-        return s
+        return check_start(start, self.dim)
 
     def simulate(self, u: Any, reference: Any = None, start: Any = None) -> np.ndarray:
         """Output of the nonlinear motor for input ``u``, from rest at ``start``.

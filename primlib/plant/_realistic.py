@@ -58,7 +58,7 @@ from primlib.plant._departures import (
 )
 from primlib.plant._machine import Machine, register_kind
 from primlib.plant._realistic_loop import linear_plant, loop_kernel, run_axis
-from primlib.plant._spec import check_kind, read_note
+from primlib.plant._spec import check_kind, check_start, read_note
 
 __all__ = ["RealisticMachine", "TrialRunner"]
 
@@ -206,14 +206,7 @@ class RealisticMachine(Machine):
 
     # ------------------------------------------------------------------ simulation
     def _check_start(self, start) -> np.ndarray:
-        if start is None:
-            return np.zeros(self.dim)
-        s = np.asarray(start, dtype=float).reshape(-1)
-        if s.shape != (self.dim,) or not np.all(np.isfinite(s)):
-            raise InputError(
-                f"start: expected {self.dim} finite coordinates (user units), got {start!r}"
-            )
-        return s
+        return check_start(start, self.dim)
 
     def simulate(
         self,

@@ -190,6 +190,16 @@ def validate_pid(axis: str, spec: Any) -> dict[str, float]:
     return out
 
 
+def check_start(start: Any, dim: int) -> np.ndarray:
+    """An absolute start position: ``dim`` finite coordinates (None: the origin, zeros)."""
+    if start is None:
+        return np.zeros(dim)
+    s = np.asarray(start, dtype=float).reshape(-1)
+    if s.shape != (dim,) or not np.all(np.isfinite(s)):
+        raise InputError(f"start: expected {dim} finite coordinates (user units), got {start!r}")
+    return s
+
+
 def check_kind(
     d: Any, kind: str, allowed: set[str], required: tuple[str, ...]
 ) -> Mapping[str, Any]:
