@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from match_helpers import random_primitive
 from scipy.spatial.transform import Rotation
 
 from primlib.cli import main
@@ -19,13 +20,6 @@ ROOT = Path(__file__).resolve().parents[1]
 EPS = 0.05
 
 
-def _primitive(rng, dt: float, n: int = 401) -> Trajectory:
-    m, p = 12, 3
-    ctrl = np.cumsum(rng.normal(size=(m, 3)) * 10.0, axis=0)
-    knots = np.concatenate([np.zeros(p), np.linspace(0, 1, m - p + 1), np.ones(p)])
-    return Trajectory.from_definition(p, knots, ctrl, None, (n - 1) * dt)
-
-
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     """A library of 4 primitives (signals by model inversion) and a path of 2 pieces."""
@@ -33,7 +27,7 @@ def setup(tmp_path_factory):
     db = tmp / "lib.duckdb"
     machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
     rng = np.random.default_rng(0)
-    trajs = [_primitive(rng, machine.dt) for _ in range(4)]
+    trajs = [random_primitive(rng, machine.dt) for _ in range(4)]
     with Store(db) as lib:
         lib.add_machine(machine)
         items = []

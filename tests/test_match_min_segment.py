@@ -9,6 +9,7 @@ import pytest
 from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from match_helpers import random_primitive
 from scipy.spatial.transform import Rotation
 
 import primlib as pl
@@ -25,20 +26,13 @@ EPS = 0.05
 SHORT = 31  # samples of the middle piece: 0.15 s at dt 5 ms
 
 
-def _primitive(rng, dt: float, n: int = 401) -> Trajectory:
-    m, p = 12, 3
-    ctrl = np.cumsum(rng.normal(size=(m, 3)) * 10.0, axis=0)
-    knots = np.concatenate([np.zeros(p), np.linspace(0, 1, m - p + 1), np.ones(p)])
-    return Trajectory.from_definition(p, knots, ctrl, None, (n - 1) * dt)
-
-
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     """4 primitives; a path of a long piece, a short one (SHORT samples), a long one."""
     tmp = tmp_path_factory.mktemp("minseg")
     machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
     rng = np.random.default_rng(3)
-    trajs = [_primitive(rng, machine.dt) for _ in range(4)]
+    trajs = [random_primitive(rng, machine.dt) for _ in range(4)]
     db = tmp / "lib.duckdb"
     with pl.Library(db) as lib:
         lib.add_machine(machine)

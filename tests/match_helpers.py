@@ -1,0 +1,15 @@
+"""Random smooth 3-D primitives for the matcher's CLI and min-segment tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from primlib.nurbs import Trajectory
+
+
+def random_primitive(rng, dt: float, n: int = 401) -> Trajectory:
+    """A cubic NURBS through a random walk of 12 control points, n samples at dt."""
+    m, p = 12, 3
+    ctrl = np.cumsum(rng.normal(size=(m, 3)) * 10.0, axis=0)
+    knots = np.concatenate([np.zeros(p), np.linspace(0, 1, m - p + 1), np.ones(p)])
+    return Trajectory.from_definition(p, knots, ctrl, None, (n - 1) * dt)
