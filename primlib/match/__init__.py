@@ -10,9 +10,10 @@ Notation: a piece is K points at uniform time; P the stored piece, Q the new pat
 rotation family everywhere: ``"full"`` (SO(d)), ``"z"`` (about the vertical axis), ``"none"``.
 
 Modules: ``_kabsch`` (superposition), ``_bounds`` (lower bounds on prefix sums),
-``_arc_index`` (the index), ``_pool`` (candidate pool), ``_index_search`` (seeds),
-``_grid`` (time-uniform grid for short pieces), ``_refine`` (Gauss–Newton), ``_segment``
-(binary search), ``_bank`` (:class:`BankIndex`), ``_match_path``.
+``_arc_index`` (the index), ``_pool`` (candidate pool), ``_smooth`` (the path the index
+sees), ``_index_search`` (seeds), ``_grid`` (time-uniform grid for short pieces),
+``_refine`` (Gauss–Newton), ``_segment`` (binary search), ``_bank`` (:class:`BankIndex`),
+``_match_path``.
 """
 
 from primlib.match._bank import BankIndex

@@ -22,11 +22,20 @@ windows' starts (a copy is then within Δ_b/8 of a shift); the best ``seeds`` di
 windows, and every other one within √2·(3ε + Δ_b/8) of the best, become the seeds, which the
 exact check (:mod:`._segment`) decides between.
 
+The index searches the path smoothed within a bound tied to its noise and eps
+(:mod:`._smooth`: white noise lengthens a path's arc far beyond what eps allows for, and
+the index would look at windows of the wrong length); the exact check stays on the samples.
+A stored piece within eps of the raw piece is within eps + δ of the smoothed one (δ the
+piece's RMS deviation from its samples, ≤ eps), so the gate and the tie width above are
+applied with eps + δ in place of eps. On a path with no noise to speak of δ = 0 and nothing
+changes.
+
 The gate is a heuristic, not a theorem: a copy within ε in uniform time can have a longer arc
-than ε allows for when the path wiggles fast (tests/test_match_heuristics.py: a period of 3
-samples at RMS 0.7ε breaks it; 4 samples does not). The exhaustive references (every window
-scored; the time-uniform grid) live in ``benchmarks/_reference_search.py`` and the tests
-compare them with this search.
+than ε allows for when the path wiggles fast; the smoothing takes out wiggles the noise
+estimate sees (tests/test_match_heuristics.py: periods of 2.5-4 samples at RMS 0.6-0.7ε),
+not slower ones of the same size. The exhaustive references (every window scored; the
+time-uniform grid) live in ``benchmarks/_reference_search.py`` and the tests compare them
+with this search; ``benchmarks/bench_match_noisy.py`` on noisy queries.
 """
 
 from __future__ import annotations
@@ -51,6 +60,7 @@ from primlib.match._grid import GridSearch
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import CandidatePool, best_and_ties, suppress
+from primlib.match._smooth import Smoothed, smooth_path
 
 __all__ = ["IndexSearch", "ArcQuery"]
 
@@ -77,6 +87,7 @@ class ArcQuery:
     moments: QueryMoments
     duration: float  # query duration in stored samples
     per_axis: bool
+    smoothing: float = 0.0  # RMS deviation of the smoothed piece from the path samples
 
     @property
     def k(self) -> int:
@@ -112,6 +123,15 @@ class IndexSearch:
 
     def __post_init__(self) -> None:
         self._grid = GridSearch(self.bank, self.opts, self.stats)
+        self._smoothed: tuple[PathPiece, float, Smoothed] | None = None
+
+    def smoothed(self, path: PathPiece, eps: float) -> Smoothed:
+        """The path as the index sees it (:mod:`._smooth`), kept for the path and eps of
+        the last call (one segmentation asks for the same path many times)."""
+        hit = self._smoothed
+        if hit is None or hit[0] is not path or hit[1] != eps:
+            hit = self._smoothed = (path, eps, smooth_path(path, eps))
+        return hit[2]
 
     def _index_for(self, ell: float) -> ArcIndex:
         """The index, or a finer one for pieces short in arc length (~16 arc samples)."""
@@ -121,8 +141,18 @@ class IndexSearch:
             return idx
         return self.bank.fine_arc_index(math.ceil(math.log2(need)))
 
-    def arc_query(self, path: PathPiece, a: float, b: float) -> ArcQuery | None:
-        """The piece [a, b] at uniform arc length; None when it is too short to index."""
+    def arc_query(
+        self, path: PathPiece, a: float, b: float, eps: float | None = None
+    ) -> ArcQuery | None:
+        """The piece [a, b] at uniform arc length; None when it is too short to index.
+
+        With ``eps``, on the path smoothed within a bound tied to its noise and eps
+        (:mod:`._smooth`); ``smoothing`` is then the piece's RMS deviation from the samples.
+        """
+        smoothing = 0.0
+        if eps is not None:
+            sm = self.smoothed(path, eps)
+            path, smoothing = sm.path, sm.deviation(a, b)
         n_dense = max(64, int(round((b - a) * (path.n - 1))) * 2 + 1)
         dense = path.at(np.linspace(a, b, n_dense))
         chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
@@ -148,7 +178,9 @@ class IndexSearch:
         per_axis = self.opts.rotation == "z"
         sq = (qc * qc).sum(axis=0) if per_axis else float((qc * qc).sum())
         dq = (b - a) * path.duration / self.bank.dt
-        return ArcQuery(idx, jb, lv, dil, step, ell, u, qc, sq, QueryMoments.of(qc), dq, per_axis)
+        return ArcQuery(
+            idx, jb, lv, dil, step, ell, u, qc, sq, QueryMoments.of(qc), dq, per_axis, smoothing
+        )
 
     def first_bound(self, aq: ArcQuery) -> np.ndarray:
         """Half-window lower bound of every window's shape RMSD (:mod:`._bounds`), the
@@ -248,15 +280,16 @@ class IndexSearch:
         below √2·Δ/2 plus the copy's own deviation (a few eps at most for a match within
         eps).
         """
-        aq = self.arc_query(path, a, b)
+        aq = self.arc_query(path, a, b, eps)
         if aq is None:
             # a (nearly) stationary or very short piece: arc length cannot place it
             return self._grid.seeds(path, a, b, eps)
         if aq.n_windows <= 0:
             return []
         # a stored copy starts within half a base step of some window start, which moves
-        # every arc sample by at most that: its window's shape RMSD is below the gate
-        gate = 3.0 * eps + 0.5 * aq.level.step * (1.0 + 1e-6)
+        # every arc sample by at most that: its window's shape RMSD is below the gate; the
+        # copy is within eps + smoothing of the smoothed piece the index searches
+        gate = 3.0 * (eps + aq.smoothing) + 0.5 * aq.level.step * (1.0 + 1e-6)
         lb1 = self.first_bound(aq)
         # chord lengths under-estimate arc length a little (more for the stored samples than
         # for the densely sampled query): let a piece reach a primitive's very end
@@ -270,7 +303,7 @@ class IndexSearch:
         pool, where = self._best_first(aq, w, lb1[w], gate)
         if not pool:
             return []
-        return self._reshift(aq, pool, where, eps)
+        return self._reshift(aq, pool, where, eps + aq.smoothing)
 
     def _best_first(self, aq: ArcQuery, w: np.ndarray, lbw: np.ndarray, gate: float):
         """Score windows ``w`` in increasing order of bound 1 (bound 2 on each chunk, exact
