@@ -1,0 +1,39 @@
+"""Smoke test of benchmarks/bench_match_noisy.py: a few noisy stored pieces of the bundled
+library at 0.1 % and 1 % noise, and one path of three joined pieces, as in the benchmark."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_match_noisy.py"
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("bench_match_noisy", BENCH)
+    bench = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = bench  # its dataclass looks its module up there
+    spec.loader.exec_module(bench)
+    return bench
+
+
+@pytest.mark.slow
+def test_index_answers_noisy_pieces_like_the_grid(capsys):
+    bench = _bench()
+    bank = bench.library("bundled")
+    res = bench.single_table(bank, 5)
+    for level in bench.NOISE:
+        assert res[level]["answered"] == {"grid": 5, "index": 5}
+        assert res[level]["differ"] == 0
+    assert "| 1 % | index | 5/5 |" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_junctions_are_reported_against_the_grid(capsys):
+    bench = _bench()
+    res = bench.junction_table(bench.library("bundled"), 1)
+    assert set(res) == set(bench.NOISE)
+    assert "| 0.1 % | grid |" in capsys.readouterr().out
