@@ -6,14 +6,16 @@ import math
 
 import numpy as np
 import pytest
+from _reference_search import reference_segment_path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_match_segment import DT, _library
 
-from primlib.match import segment_path
+from primlib.match import BankIndex, segment_path
 from primlib.match._index_search import IndexSearch
 from primlib.match._options import PathPiece, SearchOptions
-from primlib.match._smooth import gaussian_smooth, noise_sigma, smooth_path
+from primlib.match._smooth import gaussian_smooth, noise_sigma, smooth_bank, smooth_path
+from primlib.store import Bank
 
 
 def _curve(n: int, d: int, seed: int = 0) -> np.ndarray:
@@ -127,3 +129,51 @@ def test_the_index_finds_a_noisy_time_scaled_copy(level):
     segs, _ = segment_path(bank, q, DT, eps)
     assert [s.primitive for s in segs] == [102]
     assert segs[0].time_scale == pytest.approx(1 / 1.6, rel=0.01)
+
+
+def test_a_clean_bank_is_not_smoothed():
+    bank = _library(5, 801, seed=1)
+    pts, dev = smooth_bank(bank.points, bank.offsets)
+    assert pts is bank.points and not np.any(dev)
+    assert not bank.arc_index().smoothed
+    assert bank.arc_index().window_deviation(0, 10, 5) is None
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**16), levels=st.lists(st.sampled_from([0.0, 1e-3, 1e-2, 0.1]),
+       min_size=1, max_size=5))  # fmt: skip
+def test_the_screen_keeps_every_primitive_smooth_path_smooths(seed, levels):
+    # each primitive comes out exactly as smooth_path with no eps would make it: the screen
+    # only skips primitives it proves it would leave as they are
+    rng = np.random.default_rng(seed)
+    pieces = []
+    for i, level in enumerate(levels):
+        c = _curve(int(rng.integers(20, 1500)), 3, seed + i)
+        pieces.append(c + rng.normal(scale=level * 40.0, size=c.shape))
+    offsets = np.concatenate([[0], np.cumsum([len(p) for p in pieces])])
+    pts, dev = smooth_bank(np.concatenate(pieces), offsets)
+    for i, p in enumerate(pieces):
+        sm = smooth_path(PathPiece(p, 1.0), math.inf)
+        np.testing.assert_array_equal(pts[offsets[i] : offsets[i + 1]], sm.path.points)
+        want = np.linalg.norm(sm.path.points - p, axis=1)
+        np.testing.assert_allclose(dev[offsets[i] : offsets[i + 1]], want, atol=1e-12)
+
+
+@pytest.mark.parametrize("level", [0.001, 0.01])
+def test_a_clean_query_matches_its_noisy_stored_copy(level):
+    # primitive 2 stored with noise: the index measures its arc on the smoothed samples and
+    # widens each window's gate by its deviation, so the clean piece finds it as the grid does
+    clean = _library(6, 1201, seed=4)
+    rng = np.random.default_rng(6)
+    pieces = [clean.points_of(i) for i in range(6)]
+    sigma = level * float(np.ptp(pieces[2], axis=0).max())
+    pieces[2] = pieces[2] + rng.normal(scale=sigma, size=pieces[2].shape)
+    bank = BankIndex(Bank.from_samples(pieces, DT, ids=np.arange(100, 106)))
+    assert bank.arc_index().smoothed
+    q = clean.points_of(2)[300:1000:2]  # time scale 2
+    eps = 2.0 * sigma * math.sqrt(3)
+    segs, _ = segment_path(bank, q, DT, eps)
+    grid, _ = reference_segment_path(bank, q, DT, eps, "grid")
+    assert [s.primitive for s in segs] == [s.primitive for s in grid] == [102]
+    # any time scale within eps is a match: at 1 % noise eps is 3.5 % of the extent
+    assert segs[0].time_scale == pytest.approx(2.0, rel=0.05)

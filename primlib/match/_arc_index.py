@@ -2,7 +2,11 @@
 
 A rigid motion and a change of time scale leave the arc-length shape of a piece unchanged,
 so one index serves every query of every rotation family and time scale
-(:mod:`primlib.match._index_search` searches it).
+(:mod:`primlib.match._index_search` searches it). Arc length is measured on the primitives
+smoothed like a query (:func:`primlib.match._smooth.smooth_bank`: noisy stored samples would
+lengthen it as a noisy query's do); each index point carries the squared deviation of the
+smoothed primitive from its samples there, so a window knows its RMS deviation
+(:meth:`ArcIndex.window_deviation`). Clean primitives are not smoothed.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ import numpy as np
 
 from primlib.match._bounds import strided_prefix_sums
 from primlib.match._interp import linear_at
+from primlib.match._smooth import smooth_bank
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
@@ -29,6 +34,7 @@ class Level:
     x: np.ndarray  # (M,) fractional sample index in the primitive
     garc: np.ndarray  # (M,) global arc coordinate (primitive arcs laid end to end)
     left: np.ndarray  # (M,) arc length from this point to the primitive's end
+    dev2: np.ndarray | None = None  # (M,) squared deviation of the smoothed samples; None: 0
 
 
 @dataclass(frozen=True)
@@ -43,6 +49,7 @@ class ArcIndex:
     levels: tuple[Level, ...]
     x_all: np.ndarray  # sample index of every stored sample, for arc -> time
     garc_all: np.ndarray  # global arc coordinate of every stored sample
+    smoothed: bool = False  # whether any primitive was smoothed (levels carry dev2)
     cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def arc_to_sample(self, g: np.ndarray) -> np.ndarray:
@@ -79,11 +86,24 @@ class ArcIndex:
             hit = self.cache[key] = strided_prefix_sums(self.levels[jb].pts, dil)
         return hit
 
+    def window_deviation(self, jb: int, n_windows: int, span: int) -> np.ndarray | None:
+        """RMS deviation of the smoothed primitive from its samples over the ``span`` level
+        points of each window m < n_windows of level jb; None when nothing was smoothed."""
+        lv = self.levels[jb]
+        if not self.smoothed or lv.dev2 is None:
+            return None
+        key = ("d", jb)
+        cum = self.cache.get(key)
+        if cum is None:
+            cum = self.cache[key] = np.concatenate([[0.0], np.cumsum(lv.dev2)])
+        return np.sqrt(np.maximum(cum[span : span + n_windows] - cum[:n_windows], 0.0) / span)
+
     @classmethod
     def build(cls, bank: BankIndex, points_per_sample: float = 0.25) -> ArcIndex:
         # one pass per step over the flat buffer (offsets mark the primitives), no loop over
         # primitives; each level is taken from the one below it (half the points)
-        pts = bank.points
+        pts, dev = smooth_bank(bank.points, bank.offsets)
+        smoothed = bool(np.any(dev > 0))
         counts = bank.counts
         k = bank.k
         seg = np.empty(pts.shape[0] - 1)
@@ -119,6 +139,8 @@ class ArcIndex:
         x = np.interp(garc, g_samples, sample_idx)
         np.minimum(x, (counts - 1.0)[prim], out=x)
         p = linear_at(pts, bank.offsets[prim], counts[prim], x)
+        dev2 = linear_at((dev * dev)[:, None], bank.offsets[prim], counts[prim], x)[:, 0]
+        del dev
         cent = np.add.reduceat(p, base[:-1], axis=0) / n_lv0[:, None]
         p -= cent[prim]
         left = length[prim] - arc_local
@@ -126,11 +148,13 @@ class ArcIndex:
         lv = 0
         longest = float(length.max())
         while True:
-            levels.append(Level(step0 * (1 << lv), p, prim, x, garc, left))
+            levels.append(Level(step0 * (1 << lv), p, prim, x, garc, left,
+                                dev2 if smoothed else None))  # fmt: skip
             if p.shape[0] <= 2 * k or (1 << lv) * step0 * 16 > longest:
                 break
             sel = np.flatnonzero((local & 1) == 0)
             p, prim, x, garc, left = p[sel], prim[sel], x[sel], garc[sel], left[sel]
+            dev2 = dev2[sel]
             local = local[sel] >> 1
             lv += 1
-        return cls(step0, tuple(levels), sample_idx, g_samples)
+        return cls(step0, tuple(levels), sample_idx, g_samples, smoothed)

@@ -27,8 +27,9 @@ The index searches the path smoothed within a bound tied to its noise and eps
 the index would look at windows of the wrong length); the exact check stays on the samples.
 A stored piece within eps of the raw piece is within eps + δ of the smoothed one (δ the
 piece's RMS deviation from its samples, ≤ eps), so the gate and the tie width above are
-applied with eps + δ in place of eps. On a path with no noise to speak of δ = 0 and nothing
-changes.
+applied with eps + δ in place of eps. Noisy stored primitives are smoothed the same way in
+the index (:mod:`._arc_index`), and each window's gate widens by 3 times its own RMS
+deviation. On paths and primitives with no noise to speak of δ = 0 and nothing changes.
 
 The gate is a heuristic, not a theorem: a copy within ε in uniform time can have a longer arc
 than ε allows for when the path wiggles fast; the smoothing takes out wiggles the noise
@@ -273,7 +274,8 @@ class IndexSearch:
         return np.where(ok, r, np.inf), xw[:, 0]
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
-        """Best distinct arc-window candidates below the gate 3·eps + Δ, best first.
+        """Best distinct arc-window candidates below the gate 3·(eps + δ) + Δ/2, best first
+        (δ: the smoothing's deviation, module notes).
 
         A stored copy of the query starts within Δ/2 of arc length of some window start,
         which moves each arc sample by at most Δ/2 in space and in ℓ·τ: its window scores
@@ -288,28 +290,33 @@ class IndexSearch:
             return []
         # a stored copy starts within half a base step of some window start, which moves
         # every arc sample by at most that: its window's shape RMSD is below the gate; the
-        # copy is within eps + smoothing of the smoothed piece the index searches
+        # copy is within eps + smoothing (+ the stored window's own) of what the index holds
         gate = 3.0 * (eps + aq.smoothing) + 0.5 * aq.level.step * (1.0 + 1e-6)
+        stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
+        gates = gate if stored is None else gate + 3.0 * stored
         lb1 = self.first_bound(aq)
         # chord lengths under-estimate arc length a little (more for the stored samples than
         # for the densely sampled query): let a piece reach a primitive's very end
         valid = aq.level.left[: aq.n_windows] >= aq.ell - max(aq.step, 0.02 * aq.ell)
         self.stats.queries += 1
         self.stats.windows += int(np.count_nonzero(valid))
-        w = np.flatnonzero(valid & (lb1 < gate * (1 + 1e-9)))
+        w = np.flatnonzero(valid & (lb1 < gates * (1 + 1e-9)))
         self.stats.bounded += w.size
         if w.size == 0:
             return []
-        pool, where = self._best_first(aq, w, lb1[w], gate)
+        pool, where = self._best_first(aq, w, lb1[w], np.broadcast_to(gates, lb1.shape)[w])
         if not pool:
             return []
-        return self._reshift(aq, pool, where, eps + aq.smoothing)
+        extra = 0.0 if stored is None else float(max(stored[where[(c.prim, c.x0)]] for c in pool))
+        return self._reshift(aq, pool, where, eps + aq.smoothing + extra)
 
-    def _best_first(self, aq: ArcQuery, w: np.ndarray, lbw: np.ndarray, gate: float):
+    def _best_first(self, aq: ArcQuery, w: np.ndarray, lbw: np.ndarray, gates: np.ndarray):
         """Score windows ``w`` in increasing order of bound 1 (bound 2 on each chunk, exact
         scores for what passes) until the next bound reaches the pool's threshold: the pool
-        is then exactly the best distinct windows of scoring every window."""
+        is then exactly the best distinct windows of scoring every window. ``gates``: each
+        window's gate (:meth:`seeds`)."""
         lv = aq.level
+        gate = float(gates.max())
         pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, gate,
                              math.sqrt(2.0) * gate)  # fmt: skip
         where: dict[tuple[int, float], int] = {}
@@ -324,7 +331,7 @@ class IndexSearch:
             todo, x_end = todo[ok_range], x_end[ok_range]
             r, shape = self.score(aq, w[todo])
             self.stats.scored += todo.size
-            ok = np.flatnonzero(shape < gate)
+            ok = np.flatnonzero(shape < gates[todo])
             new = []
             for t in ok[np.argsort(r[ok])[: self.pool_cap]]:
                 m = int(w[todo[t]])
