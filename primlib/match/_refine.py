@@ -14,11 +14,22 @@ from primlib.match._options import Candidate, PathPiece, SearchOptions
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
 
-__all__ = ["refine", "clamp", "piece_rmsd", "duration_range", "solve_box_qp2"]
+__all__ = [
+    "refine",
+    "clamp",
+    "piece_rmsd",
+    "duration_range",
+    "solve_box_qp2",
+    "rotation_coupling",
+    "hopeless",
+]
 
 # A z <= c for z = (x0, x1): x0 >= 0, x1 <= n − 1, x1 − x0 >= lo, x1 − x0 <= hi
 _AMAT = np.array([[-1.0, 0.0], [0.0, 1.0], [1.0, -1.0], [-1.0, 1.0]])
 _BUDGET = 60  # evaluations per refinement
+# converged: a step moved less than this (samples) or gained less than this of the cost
+_MOVED = 1e-4
+_GAIN = 1e-8
 
 
 def prim_at(bank: BankIndex, i: int, x: np.ndarray) -> np.ndarray:
@@ -112,11 +123,55 @@ class _Residual:
         return float(np.sum(res * res)), res, dp @ r.T
 
     def normal_equations(self, res: np.ndarray, dpr: np.ndarray):
-        """JᵀJ and Jᵀr of the linearised residual in (x0, x1)."""
+        """JᵀJ (rotation eliminated: :func:`rotation_coupling`) and Jᵀr of the linearised
+        residual in (x0, x1)."""
         j1 = dpr * self.s[:, None]  # ∂(R p_j)/∂x1
         j0 = dpr - j1  # ∂(R p_j)/∂x0
-        jac = np.stack([(j0 - j0.mean(axis=0)).ravel(), (j1 - j1.mean(axis=0)).ravel()], 1)
-        return jac.T @ jac, jac.T @ res.ravel()
+        jac = np.stack([j0 - j0.mean(axis=0), j1 - j1.mean(axis=0)], axis=2)  # (k, d, 2)
+        jtj = np.einsum("kac,kae->ce", jac, jac)
+        red = jtj - rotation_coupling((self.qc - res)[None], jac[None], self.rotation)[0]
+        return red + 1e-9 * np.diag(np.diag(jtj)), np.einsum("kac,ka->c", jac, res)
+
+
+def rotation_coupling(u: np.ndarray, jac: np.ndarray, rotation: str) -> np.ndarray:
+    """B I⁻¹ Bᵀ, shape (m, 2, 2): what a small rotation of the rotated, centred primitive
+    u (m, k, d) takes back from JᵀJ of the Jacobian columns ``jac`` (m, k, d, 2).
+
+    The residual linearised in (δz, ω) is r − J δz − ω × u_j. Eliminating ω (its gradient
+    is zero at the Kabsch optimum) leaves the Schur complement JᵀJ − B I⁻¹ Bᵀ as the
+    Gauss–Newton matrix of the reduced cost min_R Σ|r_j|², with B_c = Σ_j u_j × J_c,j and
+    I = Σ_j (|u_j|² 1 − u_j u_jᵀ) (u's inertia). Holding R fixed instead (JᵀJ alone)
+    over-estimates the curvature wherever a rotation can absorb part of a shift along the
+    curve, and Gauss–Newton then crawls (tens of short steps where a few do). Zero for
+    ``rotation="none"``; one angle about the plane's normal in 2-D and for ``"z"``.
+    """
+    m = u.shape[0]
+    if rotation == "none":
+        return np.zeros((m, 2, 2))
+    cov = np.einsum("mka,mkbc->mcab", u, jac)  # Σ_j u_j J_c,jᵀ, (m, 2, d, d)
+    if u.shape[2] == 3 and rotation == "full":
+        # (u × v)_a = ε_abc u_b v_c: the antisymmetric part of Σ u vᵀ
+        b = np.stack([cov[..., 1, 2] - cov[..., 2, 1], cov[..., 2, 0] - cov[..., 0, 2],
+                      cov[..., 0, 1] - cov[..., 1, 0]], axis=2)  # fmt: skip
+        uu = np.einsum("mka,mkb->mab", u, u)
+        inertia = np.trace(uu, axis1=1, axis2=2)[:, None, None] * np.eye(3) - uu
+        inertia += 1e-12 * np.trace(inertia, axis1=1, axis2=2)[:, None, None] * np.eye(3)
+        return b @ np.linalg.solve(inertia, b.transpose(0, 2, 1))
+    b = cov[..., 0, 1] - cov[..., 1, 0]  # (m, 2): the angle about the plane's normal
+    inertia = np.einsum("mka,mka->m", u[..., :2], u[..., :2])
+    return b[:, :, None] * b[:, None, :] / np.maximum(inertia, 1e-300)[:, None, None]
+
+
+def hopeless(cost, gain, previous, give_up: float):
+    """True where Gauss–Newton, converging linearly at the ratio ρ = gain / previous of its
+    last two accepted decreases, would still end above ``give_up`` with ten times the
+    geometric tail gain·ρ/(1 − ρ) taken off; never within 1.21·give_up (RMSD 1.1 ε).
+
+    A heuristic, not a bound (on novel paths no seed so abandoned ever ended within it).
+    """
+    rho = gain / np.where(previous > 0, previous, np.inf)
+    tail = 10.0 * gain * rho / np.where(rho < 1.0, 1.0 - rho, 1.0)
+    return (cost > 1.21 * give_up) & (rho < 1.0) & (previous > 0) & (cost - tail > give_up)
 
 
 def refine(
@@ -127,6 +182,7 @@ def refine(
     b: float,
     opts: SearchOptions,
     target: float = 0.0,
+    give_up: float = np.inf,
 ) -> Candidate:
     """Continuous refinement of a seed's start and end, bounded to the time-scale range.
 
@@ -137,8 +193,9 @@ def refine(
     comes from its cubic interpolant. Each step solves the linearised problem exactly under
     0 ≤ x0, x1 ≤ n − 1 and the time-scale range lo ≤ x1 − x0 ≤ hi (:func:`solve_box_qp2`),
     and is accepted only when the cost decreases (Levenberg damping otherwise). Stops at
-    convergence (60 evaluations at most) or as soon as the RMSD at the refinement points
-    is below ``target``.
+    convergence (60 evaluations at most), as soon as the RMSD at the refinement points
+    is below ``target``, or when its cost decrease says it will not end below ``give_up``
+    (:func:`hopeless`).
     """
     off = int(bank.offsets[cand.prim])
     n_p = int(bank.offsets[cand.prim + 1]) - off
@@ -149,14 +206,15 @@ def refine(
     resid = _Residual(bank.points[off : off + n_p], path.at(np.linspace(a, b, k)), opts.rotation)
     c0 = clamp(bank, cand, (b - a) * path.duration, opts)
     z = _gauss_newton(resid, np.array([c0.x0, c0.x1]), np.array([0.0, n_p - 1.0, -lo, hi]),
-                      target * target * k)  # fmt: skip
+                      target * target * k, give_up * give_up * k)  # fmt: skip
     return Candidate(cand.prim, float(z[0]), float(z[1]), cand.score)
 
 
-def _gauss_newton(resid: _Residual, z: np.ndarray, cvec: np.ndarray, stop: float) -> np.ndarray:
+def _gauss_newton(resid: _Residual, z: np.ndarray, cvec: np.ndarray, stop: float,
+                  give_up: float) -> np.ndarray:  # fmt: skip
     """Damped Gauss–Newton on (x0, x1) under A z ≤ c until the cost is below ``stop``."""
     cost, res, dpr = resid(z)
-    lam = 0.0
+    lam, gain = 0.0, 0.0
     budget = _BUDGET
     while budget > 0 and cost >= stop:
         jtj, g = resid.normal_equations(res, dpr)
@@ -171,7 +229,7 @@ def _gauss_newton(resid: _Residual, z: np.ndarray, cvec: np.ndarray, stop: float
             budget -= 1
             if ncost < cost:
                 moved = float(np.abs(step).sum())
-                gain = cost - ncost
+                previous, gain = gain, cost - ncost
                 z, cost, res, dpr = nz, ncost, nres, ndpr
                 lam = lam / 10.0 if lam > 1e-6 else 0.0
                 improved = True
@@ -179,6 +237,8 @@ def _gauss_newton(resid: _Residual, z: np.ndarray, cvec: np.ndarray, stop: float
             lam = max(lam * 10.0, 1e-4)
             if lam > 1e8:
                 break
-        if not improved or moved < 1e-6 or gain < 1e-12 * cost:
+        if not improved or moved < _MOVED or gain < _GAIN * cost:
+            break
+        if hopeless(cost, gain, previous, give_up):
             break
     return z

@@ -2,7 +2,9 @@
 lockstep: every evaluation gathers, superposes and linearises all the seeds still running
 in one set of array operations, so a failing probe costs one refinement's Python overhead
 instead of one per seed. Each seed follows exactly the steps :func:`._refine.refine` takes
-for it alone (same damping, budget and stopping rules); only round-off differs.
+for it alone (same damping, budget and stopping rules, including giving up on a seed that
+will not end below ``give_up``); only round-off differs. With ``first``, every seed stops
+as soon as one is below ``target`` (a probe only needs one match).
 """
 
 from __future__ import annotations
@@ -14,7 +16,16 @@ import numpy as np
 from primlib.match._interp import cubic_at
 from primlib.match._kabsch import _rotation_2d, kabsch
 from primlib.match._options import Candidate, PathPiece, SearchOptions
-from primlib.match._refine import _AMAT, _BUDGET, clamp, duration_range
+from primlib.match._refine import (
+    _AMAT,
+    _BUDGET,
+    _GAIN,
+    _MOVED,
+    clamp,
+    duration_range,
+    hopeless,
+    rotation_coupling,
+)
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
@@ -77,15 +88,19 @@ class _Residuals:
     def normal_equations(self, res: np.ndarray, dpr: np.ndarray):
         j1 = dpr * self.s[:, None]
         j0 = dpr - j1
-        m = res.shape[0]
-        jac = np.stack([(j0 - j0.mean(axis=1, keepdims=True)).reshape(m, -1),
-                        (j1 - j1.mean(axis=1, keepdims=True)).reshape(m, -1)], axis=2)  # fmt: skip
-        return jac.transpose(0, 2, 1) @ jac, np.einsum("mna,mn->ma", jac, res.reshape(m, -1))
+        jac = np.stack([j0 - j0.mean(axis=1, keepdims=True),
+                        j1 - j1.mean(axis=1, keepdims=True)], axis=3)  # fmt: skip
+        jtj = np.einsum("mkac,mkae->mce", jac, jac)
+        red = jtj - rotation_coupling(self.qc - res, jac, self.rotation)
+        red += 1e-9 * jtj * np.eye(2)
+        return red, np.einsum("mkac,mka->mc", jac, res)
 
 
 def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
-                opts: SearchOptions, target: float = 0.0) -> list[Candidate]:  # fmt: skip
-    """:func:`._refine.refine` of every candidate, in lockstep (module notes)."""
+                opts: SearchOptions, target: float = 0.0, give_up: float = np.inf,
+                first: bool = False) -> list[Candidate]:  # fmt: skip
+    """:func:`._refine.refine` of every candidate, in lockstep (module notes); with
+    ``first``, all stop as soon as one is below ``target``."""
     dur = (b - a) * path.duration
     out = list(cands)
     rows, z, cvec = [], [], []
@@ -103,7 +118,8 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
     k = opts.refine_points
     prim = np.array([cands[i].prim for i in rows])
     resid = _Residuals(bank, prim, path.at(np.linspace(a, b, k)), opts.rotation)
-    zf = _lockstep(resid, np.array(z), np.array(cvec), target * target * k)
+    zf = _lockstep(resid, np.array(z), np.array(cvec), target * target * k,
+                   give_up * give_up * k, first)  # fmt: skip
     for j, i in enumerate(rows):
         out[i] = Candidate(cands[i].prim, float(zf[j, 0]), float(zf[j, 1]), cands[i].score)
     return out
@@ -182,15 +198,17 @@ def _box_qp_many(h: np.ndarray, g: np.ndarray, slack: np.ndarray, tol: np.ndarra
     return c[np.arange(m), np.argmin(f, axis=1)]
 
 
-def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float) -> np.ndarray:
+def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, give_up: float,
+              first: bool) -> np.ndarray:  # fmt: skip
     """:func:`._refine._gauss_newton` for every row of z at once."""
     m = z.shape[0]
     rows = np.arange(m)
     cost, res, dpr = resid(rows, z)
     lam, budget = np.zeros(m), np.full(m, _BUDGET)
+    gain, previous = np.zeros(m), np.zeros(m)
     run = cost >= stop
     jtj, g = resid.normal_equations(res, dpr)
-    while np.any(run):
+    while np.any(run) and not (first and np.any(cost < stop)):
         act = np.flatnonzero(run)
         step = _steps(jtj[act], g[act], lam[act], z[act], cvec[act])
         still = np.any(step != 0.0, axis=1)
@@ -204,17 +222,14 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float) -
         better = ncost < cost[act]
         acc, rej = act[better], act[~better]
         moved = np.abs(step[better]).sum(axis=1)
-        gain = cost[acc] - ncost[better]
-        z[acc], cost[acc], res[acc], dpr[acc] = (
-            nz[better],
-            ncost[better],
-            nres[better],
-            ndpr[better],
-        )
+        previous[acc], gain[acc] = gain[acc], cost[acc] - ncost[better]
+        z[acc], cost[acc] = nz[better], ncost[better]
+        res[acc], dpr[acc] = nres[better], ndpr[better]
         lam[acc] = np.where(lam[acc] > 1e-6, lam[acc] / 10.0, 0.0)
         lam[rej] = np.maximum(lam[rej] * 10.0, 1e-4)
         run[rej[lam[rej] > 1e8]] = False
-        run[acc[(moved < 1e-6) | (gain < 1e-12 * cost[acc]) | (cost[acc] < stop)]] = False
+        done = (moved < _MOVED) | (gain[acc] < _GAIN * cost[acc]) | (cost[acc] < stop)
+        run[acc[done | hopeless(cost[acc], gain[acc], previous[acc], give_up)]] = False
         run[budget <= 0] = False
         if acc.size:
             jtj[acc], g[acc] = resid.normal_equations(res[acc], dpr[acc])
