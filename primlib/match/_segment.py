@@ -134,7 +134,8 @@ class _Segmenter:
         cands = [c for c in (clamp(bank, s, dur, opts) for s in seeds) if c.x1 - c.x0 >= shortest]
         r0 = rmsd_many(bank, cands, path, a, b, kc, opts.rotation)
         hit = int(np.argmax(r0 < eps)) if np.any(r0 < eps) else len(cands)
-        refined = refine_many(bank, cands[:hit], path, a, b, opts, target=0.5 * eps)
+        refined = refine_many(bank, cands[:hit], path, a, b, opts, target=0.5 * eps, give_up=eps,
+                              first=True)  # fmt: skip
         r1 = rmsd_many(bank, refined, path, a, b, kc, opts.rotation)
         for c, r in zip(refined, r1, strict=True):
             if r < eps:
