@@ -8,18 +8,35 @@ search restarts from its end. The paper does not say what happens when nothing m
 at the minimum step: here the stretch [a, a + σ] becomes an *unmatched* segment
 (``primitive = None``; neighbouring unmatched stretches are merged) and the search goes on,
 so no part of the path is ever dropped. The split runs on the path's sample grid (σ = one
-sample by default; halving with rounding up reaches every sample), so a path made of exact
-copies is cut exactly at its joins. When nothing matches from a cut, the unmatched stretch
-grows by σ, doubling while the failures go on: a sub-sample sliver left by a join between
-samples costs one step, a long stretch nothing matches only log₂ of its length in searches.
+sample by default), so a path made of exact copies is cut exactly at its joins. When nothing
+matches from a cut, the unmatched stretch grows by σ, doubling while the failures go on: a
+sub-sample sliver left by a join between samples costs one step, a long stretch nothing
+matches only log₂ of its length in searches.
 
-Within one binary search, the match found by the last successful probe is tried first on
-the next probe (stretched to its length at the same time scale) before searching.
+Where this differs from the paper (for speed; the answer is the same wherever "prefix [a, b]
+matches" is monotone in b, and always a prefix that matches followed by one that does not):
 
-A probe "matches" when some seed (:mod:`._index_search`), refined continuously
-(:mod:`._refine`), has Kabsch RMSD below ε against the piece, compared at the path's own
-samples in the piece (cuts lie on samples; 16 points at least) and the primitive at the
-corresponding uniform times — the RMSD reported in the segment.
+* The first probe from a cut is as long as the previous segment (the whole remainder for
+  the first cut); failing probes halve it until one matches. From there the split gallops
+  (doubling the prefix) and then bisects between the longest prefix that matched and the
+  shortest that failed, down to σ. On a path the library does not hold, segments are a few
+  dozen samples long and the paper's first probes (the remainder, its half, ...) all fail;
+  galloping up from the previous length skips them. The trade-off: a prefix longer than
+  twice the last one that matched, after a shorter one failed, is not looked for (a
+  non-monotone case; the paper's halving finds it only when it lies on its probe points).
+* Inside that search a probe only stretches the match of the longest prefix so far to the
+  new length at the same time scale and refines it (:meth:`_Segmenter.extend`, a few Gauss–
+  Newton steps of one candidate): a success is a match like any other; a failure moves the
+  upper end but proves nothing. The search stops only when the prefix one step (≤ σ) longer
+  fails both ways — the match stretched and the whole search (seeds from
+  :mod:`._index_search`, refined) — so a prefix is never cut short because the match
+  followed so far left the path while another primitive goes on.
+
+A probe "matches" when some candidate, refined continuously (:mod:`._refine`), has Kabsch
+RMSD below ε against the piece, compared at the path's own samples in the piece (cuts lie on
+samples; 16 points at least) and the primitive at the corresponding uniform times — the RMSD
+reported in the segment. The segment's primitive is then the lowest-RMSD one among the
+match and the search's seeds for the final prefix (:meth:`_Segmenter.best`).
 """
 
 from __future__ import annotations
@@ -118,14 +135,15 @@ class _Segmenter:
         self.eps = eps
         self.opts = opts
         self.probes = 0
+        self.extensions = 0
         self.rejected = 0
 
     def _try(self, a: float, b: float, seeds: list[Candidate], kc: int) -> _Found | None:
-        """The first seed, in order, within eps of [a, b] as it comes or once refined.
+        """A seed within eps of [a, b] as it comes or once refined.
 
         Every seed's exact RMSD is computed at once; the seeds before the first that already
-        matches are refined together (:func:`._refine_many.refine_many`), so the answer is
-        the one trying them one by one would give.
+        matches are refined together (:func:`._refine_many.refine_many`) until one is below
+        eps/2 (a match), giving up on those that will not reach eps.
         """
         bank, path, opts, eps = self.bank, self.path, self.opts, self.eps
         dur = (b - a) * path.duration
@@ -142,12 +160,10 @@ class _Segmenter:
                 return _Found(c, float(r), True)
         return _Found(cands[hit], float(r0[hit]), False) if hit < len(cands) else None
 
-    def probe(self, a: float, b: float, hint=None) -> _Found | None:
+    def probe(self, a: float, b: float) -> _Found | None:
         """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?
 
-        ``hint`` (a match found for [a, b'] in this binary search) is tried first, stretched
-        to the new length at the same time scale: a success there is a match like any other;
-        the search runs when it fails.
+        The whole search: an up-front rejection (:mod:`._reject`), then the seeds.
         """
         self.probes += 1
         if (b - a) * (self.path.n - 1) < _MIN_SAMPLES - 1 - 1e-9:
@@ -159,34 +175,50 @@ class _Segmenter:
         if rejects(env, q, steps, low, self.opts.rotation, self.eps):
             self.rejected += 1  # no primitive can be within eps: the exact check would say so
             return None
-        if hint is not None:
-            cand, b_old = hint
-            x1 = cand.x0 + (cand.x1 - cand.x0) * (b - a) / (b_old - a)
-            found = self._try(a, b, [Candidate(cand.prim, cand.x0, x1, 0.0)], kc)
-            if found is not None:
-                return found
         return self._try(a, b, self.seeder.seeds(self.path, a, b, self.eps), kc)
 
-    def longest_prefix(self, ia: int, sig: int) -> tuple[int, _Found] | None:
-        """Steps 1–5 from sample ia on the sample grid (halving with rounding up still
-        reaches every split): the longest matching prefix's end sample and its match."""
+    def extend(self, a: float, b_old: float, b: float, found: _Found) -> _Found | None:
+        """The match ``found`` of [a, b_old] stretched to [a, b] at the same time scale and
+        refined: a success is a match like any other; a failure proves nothing."""
+        self.extensions += 1
+        cand = found.cand
+        x1 = cand.x0 + (cand.x1 - cand.x0) * (b - a) / (b_old - a)
+        return self._try(a, b, [Candidate(cand.prim, cand.x0, x1, 0.0)],
+                         self.path.confirm_points(a, b))  # fmt: skip
+
+    def longest_prefix(self, ia: int, sig: int, guess: int) -> tuple[int, _Found] | None:
+        """The longest matching prefix from sample ia (module notes): its end sample and
+        match, or None when no prefix of ``_MIN_SAMPLES`` samples or more matches."""
         last = self.path.n - 1
-        step = last - ia
-        iv = last
-        best: tuple[int, _Found] | None = None
-        hint = None
+        v = 1.0 / last
+        length = min(max(guess, sig), last - ia)
+        hi = None  # shortest end known to fail ...
+        tried = set()  # ... by the whole search ("probe") and/or the match stretched ("extend")
+        while (found := self.probe(ia * v, (ia + length) * v)) is None:
+            if length <= sig or length < _MIN_SAMPLES - 1:
+                return None
+            hi, tried, length = ia + length, {"probe"}, max(sig, length // 2)
+        lo = ia + length
         while True:
-            found = self.probe(ia / last, iv / last, hint)
-            if found is not None:
-                best = (iv, found)
-                hint = (found.cand, iv / last)
-                if iv == last:
-                    break
-            if step <= sig:
-                break
-            step = (step + 1) // 2
-            iv = min(last, iv + step) if found is not None else max(ia + 1, iv - step)
-        return best
+            while lo < last and (hi is None or hi - lo > sig):
+                iv = min(last, ia + 2 * (lo - ia)) if hi is None else (lo + hi + 1) // 2
+                ext = self.extend(ia * v, lo * v, iv * v, found)
+                if ext is None:
+                    hi, tried = iv, {"extend"}
+                else:
+                    lo, found = iv, ext
+            if lo == last:
+                return lo, found
+            # hi - lo <= sig: stop only when neither the match stretched nor the whole search
+            # (neither finds all the other does) matches at hi
+            ext = None
+            if "extend" not in tried:
+                ext = self.extend(ia * v, lo * v, hi * v, found)
+            if ext is None and "probe" not in tried:
+                ext = self.probe(ia * v, hi * v)
+            if ext is None:
+                return lo, found
+            lo, found, hi = hi, ext, None
 
     def best(self, a: float, b: float, found: _Found) -> Candidate:
         """The lowest-RMSD match of [a, b] among the probe's match and the search's seeds,
@@ -232,10 +264,12 @@ class _Segmenter:
         segments: list[Segment] = []
         ia = 0
         advance = sig
+        guess = last
         while ia < last:
-            best = self.longest_prefix(ia, sig)
+            best = self.longest_prefix(ia, sig, guess)
             if best is not None:
                 segments.append(self.segment(ia / last, best[0] / last, best[1]))
+                guess = best[0] - ia
                 ia = best[0]
                 advance = sig
                 if progress is not None:
@@ -303,6 +337,7 @@ def segment_with(
     info = {
         "search": getattr(seeder, "name", "index"),
         "probes": seg.probes,
+        "extensions": seg.extensions,
         "rejected": seg.rejected,
         "windows": stats.windows,
         "bounded": stats.bounded,
