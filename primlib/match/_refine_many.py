@@ -98,9 +98,10 @@ class _Residuals:
 
 def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
                 opts: SearchOptions, target: float = 0.0, give_up: float = np.inf,
-                first: bool = False) -> list[Candidate]:  # fmt: skip
+                first: bool = False, points: int | None = None) -> list[Candidate]:  # fmt: skip
     """:func:`._refine.refine` of every candidate, in lockstep (module notes); with
-    ``first``, all stop as soon as one is below ``target``."""
+    ``first``, all stop as soon as one is below ``target``. ``points`` uniform times
+    (default ``opts.refine_points``)."""
     dur = (b - a) * path.duration
     out = list(cands)
     rows, z, cvec = [], [], []
@@ -115,7 +116,7 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
         cvec.append([0.0, n_p - 1.0, -lo, hi])
     if not rows:
         return out
-    k = opts.refine_points
+    k = opts.refine_points if points is None else points
     prim = np.array([cands[i].prim for i in rows])
     resid = _Residuals(bank, prim, path.at(np.linspace(a, b, k)), opts.rotation)
     zf = _lockstep(resid, np.array(z), np.array(cvec), target * target * k,

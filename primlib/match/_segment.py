@@ -142,8 +142,8 @@ class _Segmenter:
         """A seed within eps of [a, b] as it comes or once refined.
 
         Every seed's exact RMSD is computed at once; the seeds before the first that already
-        matches are refined together (:func:`._refine_many.refine_many`) until one is below
-        eps/2 (a match), giving up on those that will not reach eps.
+        matches are refined together (:func:`._refine_many.refine_many`) on the check's own
+        kc points until one is below eps (a match), giving up on those that will not be.
         """
         bank, path, opts, eps = self.bank, self.path, self.opts, self.eps
         dur = (b - a) * path.duration
@@ -152,8 +152,8 @@ class _Segmenter:
         cands = [c for c in (clamp(bank, s, dur, opts) for s in seeds) if c.x1 - c.x0 >= shortest]
         r0 = rmsd_many(bank, cands, path, a, b, kc, opts.rotation)
         hit = int(np.argmax(r0 < eps)) if np.any(r0 < eps) else len(cands)
-        refined = refine_many(bank, cands[:hit], path, a, b, opts, target=0.5 * eps, give_up=eps,
-                              first=True)  # fmt: skip
+        refined = refine_many(bank, cands[:hit], path, a, b, opts, target=eps * (1 - 1e-9),
+                              give_up=eps, first=True, points=kc)  # fmt: skip
         r1 = rmsd_many(bank, refined, path, a, b, kc, opts.rotation)
         for c, r in zip(refined, r1, strict=True):
             if r < eps:
