@@ -103,6 +103,24 @@ def _baseline_tree(rev: str, tmp: str) -> Path:
     return Path(tmp)
 
 
+def _compare(new: list, old: list, last: int) -> str:
+    """How the cuts and primitives of each path differ from the baseline's (empty if not)."""
+    notes = []
+    for i, (x, y) in enumerate(zip(new, old, strict=True)):
+        cx, cy = [round(e * last) for e, _ in x], [round(e * last) for e, _ in y]
+        if cx != cy:
+            if len(cx) == len(cy):
+                shift = max(abs(a - b) for a, b in zip(cx, cy, strict=True))
+                notes.append(f"path {i}: {sum(a != b for a, b in zip(cx, cy, strict=True))} "
+                             f"of {len(cx)} cuts moved, by {shift} samples at most")  # fmt: skip
+            else:
+                notes.append(f"path {i}: {len(cx)} segments (baseline {len(cy)})")
+        elif [p for _, p in x] != [p for _, p in y]:
+            changed = sum(p != q for (_, p), (_, q) in zip(x, y, strict=True))
+            notes.append(f"path {i}: same cuts, {changed} other primitive(s)")
+    return f" ({'; '.join(notes)})" if notes else " (same cuts and primitives)"
+
+
 def _report(spec: dict, new: dict, old: dict | None) -> None:
     print(f"\n{spec['library']} library, {spec['samples']:,} samples, {spec['paths']} paths "
           "(first call, seconds)")  # fmt: skip
@@ -115,13 +133,7 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         if old is not None:
             b = statistics.median(old[label]["times"])
             base, ratio = f"{b:.2f}", f"{b / med:.1f}x"
-            cuts = [[e for e, _ in s] for s in r["segments"]]
-            assert cuts == [[e for e, _ in s] for s in old[label]["segments"]], (
-                f"{label}: the cuts differ from the baseline's"
-            )
-            changed = sum(a != b for x, y in zip(r["segments"], old[label]["segments"],
-                          strict=True) for a, b in zip(x, y, strict=True))  # fmt: skip
-            base += f" ({changed} primitive(s) now better)" if changed else ""
+            base += _compare(r["segments"], old[label]["segments"], int(spec["samples"]) - 1)
         nseg = statistics.median(len(s) for s in r["segments"])
         print(f"| {label} | {med:.2f} | {max(r['times']):.2f} | {nseg:g} | "
               f"{100 * statistics.median(r['fraction']):.0f} % | {base} | {ratio} |")  # fmt: skip
