@@ -137,9 +137,13 @@ class _Segmenter:
         self.probes = 0
         self.extensions = 0
         self.rejected = 0
+        self.sig = 1  # the minimum step σ in samples (set by run)
+        self.failed: tuple[float, float, list[Candidate]] | None = None  # the last failing
+        # whole search: (a, b, its seeds)
 
-    def _try(self, a: float, b: float, seeds: list[Candidate], kc: int) -> _Found | None:
-        """A seed within eps of [a, b] as it comes or once refined.
+    def _try(self, a: float, b: float, seeds: list[Candidate], kc: int, converge=False):
+        """A seed within eps of [a, b] as it comes or once refined (or None), and the lowest
+        RMSD any seed reached (inf without seeds).
 
         Every seed's exact RMSD is computed at once; the seeds before the first that already
         matches are refined together (:func:`._refine_many.refine_many`) on the check's own
@@ -151,40 +155,50 @@ class _Segmenter:
         # a primitive too short for the time-scale range is clamped below it: not a match
         cands = [c for c in (clamp(bank, s, dur, opts) for s in seeds) if c.x1 - c.x0 >= shortest]
         r0 = rmsd_many(bank, cands, path, a, b, kc, opts.rotation)
-        hit = int(np.argmax(r0 < eps)) if np.any(r0 < eps) else len(cands)
-        refined = refine_many(bank, cands[:hit], path, a, b, opts, target=eps * (1 - 1e-9),
-                              give_up=eps, first=True, points=kc)  # fmt: skip
+        hit = int(np.argmax(r0 < eps)) if np.any(r0 < eps) and not converge else len(cands)
+        target = 0.0 if converge else eps * (1 - 1e-9)
+        refined = refine_many(bank, cands[:hit], path, a, b, opts, target=target, give_up=eps,
+                              first=True, points=kc)  # fmt: skip
         r1 = rmsd_many(bank, refined, path, a, b, kc, opts.rotation)
+        lowest = float(min(r0.min(initial=np.inf), r1.min(initial=np.inf)))
         for c, r in zip(refined, r1, strict=True):
             if r < eps:
-                return _Found(c, float(r), True)
-        return _Found(cands[hit], float(r0[hit]), False) if hit < len(cands) else None
+                return _Found(c, float(r), True), lowest
+        if hit < len(cands):
+            return _Found(cands[hit], float(r0[hit]), False), lowest
+        return None, lowest
 
-    def probe(self, a: float, b: float) -> _Found | None:
+    def probe(self, a: float, b: float):
         """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?
 
-        The whole search: an up-front rejection (:mod:`._reject`), then the seeds.
+        The whole search: an up-front rejection (:mod:`._reject`), then the seeds. Returns
+        the match (or None) and the lowest RMSD a seed reached (inf if none was tried).
         """
         self.probes += 1
         if (b - a) * (self.path.n - 1) < _MIN_SAMPLES - 1 - 1e-9:
-            return None
+            return None, np.inf
         kc = self.path.confirm_points(a, b)
         q = self.path.at(np.linspace(a, b, kc))
         steps = (b - a) * self.path.duration / self.bank.dt
         env, low = self.bank.envelope(), self.opts.time_scale[0]
         if rejects(env, q, steps, low, self.opts.rotation, self.eps):
             self.rejected += 1  # no primitive can be within eps: the exact check would say so
-            return None
-        return self._try(a, b, self.seeder.seeds(self.path, a, b, self.eps), kc)
+            return None, np.inf
+        seeds = self.seeder.seeds(self.path, a, b, self.eps)
+        found, lowest = self._try(a, b, seeds, kc)
+        if found is None:
+            self.failed = (a, b, seeds)
+        return found, lowest
 
-    def extend(self, a: float, b_old: float, b: float, found: _Found) -> _Found | None:
+    def extend(self, a: float, b_old: float, b: float, found: _Found):
         """The match ``found`` of [a, b_old] stretched to [a, b] at the same time scale and
-        refined: a success is a match like any other; a failure proves nothing."""
+        refined (a success is a match like any other; a failure proves nothing), and the
+        lowest RMSD it reached."""
         self.extensions += 1
         cand = found.cand
         x1 = cand.x0 + (cand.x1 - cand.x0) * (b - a) / (b_old - a)
         return self._try(a, b, [Candidate(cand.prim, cand.x0, x1, 0.0)],
-                         self.path.confirm_points(a, b))  # fmt: skip
+                         self.path.confirm_points(a, b), converge=True)  # fmt: skip
 
     def longest_prefix(self, ia: int, sig: int, guess: int) -> tuple[int, _Found] | None:
         """The longest matching prefix from sample ia (module notes): its end sample and
@@ -194,46 +208,77 @@ class _Segmenter:
         length = min(max(guess, sig), last - ia)
         hi = None  # shortest end known to fail ...
         tried = set()  # ... by the whole search ("probe") and/or the match stretched ("extend")
-        while (found := self.probe(ia * v, (ia + length) * v)) is None:
+        while (found := self.probe(ia * v, (ia + length) * v))[0] is None:
             if length <= sig or length < _MIN_SAMPLES - 1:
                 return None
-            hi, tried, length = ia + length, {"probe"}, max(sig, length // 2)
-        lo = ia + length
+            hi, tried, r_hi, length = ia + length, {"probe"}, found[1], max(sig, length // 2)
+        found = found[0]
+        lo, r_lo = ia + length, found.rmsd
+        if hi is None:
+            r_hi = np.inf
         while True:
+            side = 0  # which end the last extension moved: +1 lo, -1 hi
             while lo < last and (hi is None or hi - lo > sig):
-                iv = min(last, ia + 2 * (lo - ia)) if hi is None else (lo + hi + 1) // 2
-                ext = self.extend(ia * v, lo * v, iv * v, found)
+                iv = (
+                    min(last, ia + 2 * (lo - ia))
+                    if hi is None
+                    else _split(lo - ia, hi - ia, r_lo, r_hi, self.eps) + ia
+                )
+                ext, r = self.extend(ia * v, lo * v, iv * v, found)
                 if ext is None:
-                    hi, tried = iv, {"extend"}
+                    hi, tried, r_hi = iv, {"extend"}, r
+                    if side < 0:
+                        r_lo = 0.5 * (r_lo + self.eps)  # Illinois: the stuck end counts half
+                    side = -1
                 else:
-                    lo, found = iv, ext
+                    lo, found, r_lo = iv, ext, ext.rmsd
+                    if side > 0:
+                        r_hi = 0.5 * (r_hi + self.eps)
+                    side = 1
             if lo == last:
                 return lo, found
             # hi - lo <= sig: stop only when neither the match stretched nor the whole search
             # (neither finds all the other does) matches at hi
             ext = None
             if "extend" not in tried:
-                ext = self.extend(ia * v, lo * v, hi * v, found)
+                ext, _ = self.extend(ia * v, lo * v, hi * v, found)
             if ext is None and "probe" not in tried:
-                ext = self.probe(ia * v, hi * v)
+                ext, _ = self.probe(ia * v, hi * v)
             if ext is None:
                 return lo, found
-            lo, found, hi = hi, ext, None
+            lo, found, hi, r_lo, r_hi = hi, ext, None, ext.rmsd, np.inf
 
     def best(self, a: float, b: float, found: _Found) -> Candidate:
         """The lowest-RMSD match of [a, b] among the probe's match and the search's seeds,
         each at its refined optimum (or as it came, when that is lower): the longest prefix
-        is the binary search's, the primitive the best that matches it."""
+        is the binary search's, the primitive the best that matches it.
+
+        The seeds are those of the whole search that failed one step (≤ σ) further from the
+        same start, shrunk to [a, b] at their time scale, when the search stopped on one
+        (the index's candidates for a piece one sample longer); a seed whose refinement
+        will not end below the match's RMSD is given up.
+        """
         bank, path, opts = self.bank, self.path, self.opts
         dur = (b - a) * path.duration
         shortest = opts.time_scale[0] * dur / bank.dt * (1 - 1e-9)
-        seeds = (clamp(bank, s, dur, opts) for s in self.seeder.seeds(path, a, b, self.eps))
+        seeds = self._seeds_near(a, b)
+        seeds = (clamp(bank, s, dur, opts) for s in seeds)
         cands = [found.cand, *(c for c in seeds if c.x1 - c.x0 >= shortest)]
         kc = path.confirm_points(a, b)
-        both = cands + refine_many(bank, cands, path, a, b, opts)
+        both = cands + refine_many(bank, cands, path, a, b, opts, give_up=found.rmsd)
         r = rmsd_many(bank, both, path, a, b, kc, opts.rotation)
         r[0] = min(r[0], found.rmsd)  # the match as found, at the probe's own RMSD
         return both[int(np.argmin(r))]
+
+    def _seeds_near(self, a: float, b: float) -> list[Candidate]:
+        """Seeds for [a, b]: the last failing whole search's when it started at a and ended
+        at most σ after b (shrunk to [a, b]), else a new search."""
+        if self.failed is not None:
+            fa, fb, seeds = self.failed
+            if fa == a and 0 < (fb - b) * (self.path.n - 1) <= self.sig + 1e-6:
+                k = (b - a) / (fb - a)
+                return [Candidate(c.prim, c.x0, c.x0 + k * (c.x1 - c.x0), c.score) for c in seeds]
+        return self.seeder.seeds(self.path, a, b, self.eps)
 
     def segment(self, a: float, b: float, found: _Found) -> Segment:
         """The segment [a, b] of a probe's match (:meth:`best`)."""
@@ -259,6 +304,7 @@ class _Segmenter:
         """The whole path, cut by cut; unmatched stretches grow σ first, doubling while the
         failures go on (a sub-sample sliver costs one step, a long unmatched stretch only
         log₂ of its length in searches)."""
+        self.sig = sig
         last = self.path.n - 1
         d = self.bank.dim
         segments: list[Segment] = []
@@ -287,6 +333,17 @@ class _Segmenter:
             if progress is not None:
                 progress(ia, last)
         return segments
+
+
+def _split(lo: int, hi: int, r_lo: float, r_hi: float, eps: float) -> int:
+    """Where the RMSD reaches eps between a match of lo samples (RMSD r_lo < eps) and a
+    failure of hi (r_hi), strictly between: a power law r ∝ Lᵖ through both (regula falsi in
+    log-log: a piece's misfit grows like a power of its length); the midpoint when r_hi is
+    unknown."""
+    if not (np.isfinite(r_hi) and r_hi > eps and 0 < r_lo < eps):
+        return (lo + hi + 1) // 2
+    t = math.log(eps / r_lo) / math.log(r_hi / r_lo)
+    return min(hi - 1, max(lo + 1, int(round(lo * (hi / lo) ** t))))
 
 
 def _unmatched(a: float, b: float, d: int) -> Segment:
