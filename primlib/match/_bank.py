@@ -20,6 +20,8 @@ __all__ = ["BankIndex", "as_index"]
 
 # Finer arc-length indexes are capped at this many indexed points (memory ~ 100 B / point).
 _FINE_CAP = 4e6
+# Points of the base arc-length index per stored sample.
+_BASE_PPS = 0.25
 
 
 class BankIndex:
@@ -130,7 +132,7 @@ class BankIndex:
         """The arc-length index of the usable primitives (built on first call, then kept)."""
         if self._arc is None:
             t0 = time.perf_counter()
-            self._arc = ArcIndex.build(self)
+            self._arc = ArcIndex.build(self, points_per_sample=_BASE_PPS)
             self.index_seconds = time.perf_counter() - t0
         return self._arc
 
@@ -139,13 +141,27 @@ class BankIndex:
         built once; j is capped so it holds at most ~4 million points."""
         base = self.arc_index()
         n0 = base.levels[0].pts.shape[0]
-        j = min(j, int(math.log2(max(_FINE_CAP / max(n0, 1), 1.0))))
+        j = min(j, _finest(n0))
         if j <= 0:
             return base
         if j not in self._fine:
             pps = n0 / max(self.points.shape[0], 1)
             self._fine[j] = ArcIndex.build(self, points_per_sample=pps * 2**j)
         return self._fine[j]
+
+    def finest_step(self) -> float:
+        """A lower bound on the arc step of every index :meth:`fine_arc_index` can return.
+
+        A piece shorter in arc length than a few such steps cannot be indexed at any
+        resolution (the search then uses the time-uniform grid): asking this first spares
+        building a fine index (up to ~4 million points) for a (nearly) stationary piece.
+        """
+        base = self.arc_index()
+        n0 = base.levels[0].pts.shape[0]
+        # ArcIndex.build: step0 = total arc / max(points per sample · N, 1); the finest
+        # index has n0·2ʲ points in all, the base max(_BASE_PPS · N, 1)
+        total = base.step0 * max(_BASE_PPS * self.points.shape[0], 1.0)
+        return total / max(n0 * 2.0 ** max(_finest(n0), 0), 1.0) * (1.0 - 1e-9)
 
     def max_step(self) -> np.ndarray:
         """Largest distance between consecutive samples, per primitive, shape (k,)."""
@@ -163,6 +179,11 @@ class BankIndex:
 
     def __repr__(self) -> str:
         return f"BankIndex({self.machine!r}, {self.k} primitives, {len(self.skipped)} skipped)"
+
+
+def _finest(n0: int) -> int:
+    """Largest refinement j of a base index of n0 points within ``_FINE_CAP`` points."""
+    return int(math.log2(max(_FINE_CAP / max(n0, 1), 1.0)))
 
 
 def _screen(points: np.ndarray, offsets: np.ndarray) -> dict[int, str]:

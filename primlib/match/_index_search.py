@@ -158,6 +158,8 @@ class IndexSearch:
         dense = path.at(np.linspace(a, b, n_dense))
         chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
         ell = float(chord[-1])
+        if ell < 3.0 * self.bank.finest_step():
+            return None  # too short for any index: none is built for it
         idx = self._index_for(ell)
         if ell < 3.0 * idx.step0:
             return None

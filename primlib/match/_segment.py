@@ -177,10 +177,15 @@ class _Segmenter:
         self.probes += 1
         if (b - a) * (self.path.n - 1) < _MIN_SAMPLES - 1 - 1e-9:
             return None, np.inf
-        kc = self.path.confirm_points(a, b)
-        q = self.path.at(np.linspace(a, b, kc))
         steps = (b - a) * self.path.duration / self.bank.dt
         env, low = self.bank.envelope(), self.opts.time_scale[0]
+        if low * steps * (1.0 - 1e-9) > env.last.max():
+            # longer than any primitive allows at the lowest time scale: rejected before
+            # the piece is sampled, so the first probes of a long path cost nothing
+            self.rejected += 1
+            return None, np.inf
+        kc = self.path.confirm_points(a, b)
+        q = self.path.at(np.linspace(a, b, kc))
         if rejects(env, q, steps, low, self.opts.rotation, self.eps):
             self.rejected += 1  # no primitive can be within eps: the exact check would say so
             return None, np.inf
