@@ -49,9 +49,11 @@ class Envelope:
         centre = 0.5 * (lo + hi)
         dev = points - centre[rows]
         margin = _OVERSHOOT * max_step
-        far = np.maximum.reduceat(np.linalg.norm(dev, axis=1), starts)
+        # squared norms by einsum: np.linalg.norm over a short axis is ~5x slower
+        far = np.sqrt(np.maximum.reduceat(np.einsum("ij,ij->i", dev, dev), starts))
         if points.shape[1] == 3:
-            far_xy = np.maximum.reduceat(np.linalg.norm(dev[:, :2], axis=1), starts) + margin
+            sq_xy = np.einsum("ij,ij->i", dev[:, :2], dev[:, :2])
+            far_xy = np.sqrt(np.maximum.reduceat(sq_xy, starts)) + margin
         else:
             far_xy = np.zeros(len(starts))
         half = 0.5 * (hi - lo) + margin[:, None]
