@@ -71,7 +71,7 @@ def test_table_names_every_segment(setup):
 def test_json_reads_back_and_transforms_hold(setup):
     res = _run(setup, setup["csv"], "--machine", "xyz", "--eps", EPS, "--json")
     assert res.exit_code == 0, res.output
-    d = json.loads(res.output)
+    d = json.loads(res.stdout)
     segs = d["segments"]
     assert [s["primitive"] for s in segs] == [setup["ids"][1], setup["ids"][3]]
     assert segs[0]["start"] == 0.0 and segs[-1]["end"] == 1.0

@@ -116,10 +116,10 @@ def test_cli_min_segment_and_matched_fraction(setup):
     base = ["--db", str(setup["db"]), "match", str(setup["csv"]), "-m", "xyz", "--eps", str(EPS)]
     res = CliRunner().invoke(main, [*base, "--min-segment", "0", "--json"])
     assert res.exit_code == 0, res.output
-    every = json.loads(res.output)
+    every = json.loads(res.stdout)
     res = CliRunner().invoke(main, [*base, "--min-segment", "100", "--json"])
     assert res.exit_code == 0, res.output
-    none = json.loads(res.output)
+    none = json.loads(res.stdout)
     assert 0.5 < every["matched_fraction"] <= 1.0
     assert none["matched_fraction"] == 0.0 and none["n_segments"] == 1
     res = CliRunner().invoke(main, [*base, "--min-segment", "0"])

@@ -147,7 +147,7 @@ def test_cli_ingest_and_match_accept_a_geomdl_json_path(library):
         main, ["--db", str(db), "match", str(js), "--machine", "xyz", "--json"]
     )
     assert res.exit_code == 0, res.output
-    segs = json.loads(res.output)["segments"]
+    segs = json.loads(res.stdout)["segments"]
     # the stored primitive was refitted from the curve's samples: within the fit tolerance
     assert len(segs) == 1 and segs[0]["rmsd"] < FIT_RTOL * library["tr"].extent
 

@@ -63,6 +63,12 @@ def _check_numbers(eps: float | None, min_segment: float | None) -> None:
         raise InputError(f"--min-segment: expected a duration >= 0 s, got {min_segment:g}")
 
 
+def _match_progress():
+    """A bar a second on stderr once matching has taken 2 s (stdout stays clean): path
+    samples covered and segments found."""
+    return stderr_progress("match: path samples", after=2.0, every=1.0, bar=20, found="segments")
+
+
 @main.command("match")
 @click.argument("path_csv", type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
@@ -176,8 +182,7 @@ def match(
         if min_segment is not None:  # else the library's default (a server's too)
             kw["min_segment"] = min_segment
         if not ctx.find_root().obj.get("remote"):
-            # a line a second on stderr once matching has taken 2 s (stdout stays clean)
-            kw["progress"] = stderr_progress("match: path samples covered", after=2.0, every=1.0)
+            kw["progress"] = _match_progress()
         ws = None
         if out_file is not None:
             kw.update({} if origin is None else {"origin": origin})

@@ -38,7 +38,7 @@ def match_path(
     min_step: float | None = None,
     min_segment: float | None = None,
     options: SearchOptions | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[int, int, int], None] | None = None,
 ) -> Match:
     """Match a new path against a machine's primitives.
 
@@ -56,7 +56,8 @@ def match_path(
         Allowed primitive duration / segment duration; default
         :data:`primlib.defaults.TIME_SCALE`.
     min_step, options, progress
-        As for :func:`segment_path` (``progress(done, total)`` counts path samples).
+        As for :func:`segment_path` (``progress(done, total, segments)``: path samples
+        covered of the path's, and segments found so far).
     min_segment : float, optional
         Shortest matched segment kept, seconds of the path; a shorter match is not worth a
         junction and becomes part of the unmatched stretch beside it (the warm start fills

@@ -324,7 +324,7 @@ class _Segmenter:
                 ia = best[0]
                 advance = sig
                 if progress is not None:
-                    progress(ia, last)
+                    progress(ia, last, len(segments))
                 continue
             ib = min(last, ia + advance)
             if last - ib < _MIN_SAMPLES:
@@ -336,7 +336,7 @@ class _Segmenter:
             ia = ib
             advance *= 2
             if progress is not None:
-                progress(ia, last)
+                progress(ia, last, len(segments))
         return segments
 
 
@@ -378,7 +378,7 @@ def segment_with(
     eps: float,
     opts: SearchOptions,
     min_step: float | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[int, int, int], None] | None = None,
 ) -> tuple[list[Segment], dict[str, Any]]:
     """:func:`segment_path` with a given seed finder (the index search, or a reference)."""
     t_start = time.perf_counter()
@@ -423,7 +423,7 @@ def segment_path(
     time_scale: tuple[float, float] | None = None,
     min_step: float | None = None,
     options: SearchOptions | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[int, int, int], None] | None = None,
 ) -> tuple[list[Segment], dict[str, Any]]:
     """Cut a path into the fewest pieces that each match a stored piece within eps.
 
@@ -450,8 +450,8 @@ def segment_path(
     options : SearchOptions, optional
         Further knobs of the search.
     progress : callable, optional
-        ``progress(done, total)`` after each cut: path samples covered so far, of
-        ``total = n − 1``.
+        ``progress(done, total, segments)`` after each cut: path samples covered so far,
+        of ``total = n − 1``, and the segments found so far (matched or not).
 
     Returns
     -------
