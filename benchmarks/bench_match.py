@@ -15,11 +15,17 @@ Reports, each beside its baseline measured in the same run:
   windows the exhaustive scan scores;
 * first-call and warm match time against library size 10 / 100 / 1,000.
 
+* the persisted index: reading the 1,000 primitives' index and envelopes back from a
+  DuckDB file against building them (``_index_persist.py``); rebuilding wins, so the index
+  is not kept in the library file (the row says by how much).
+
 Run: ``python benchmarks/bench_match.py`` (single-threaded BLAS; ``--full-grid`` also runs
 the time grid on 1,000 primitives, about ten minutes; ``--restricted`` instead times the
 restricted searches — ``rotation="none"``, time scale 1-1 — against the default on the
 bundled library and ``data/paths/glyph-chain.csv``, the per-axis bound beside the
-rotation-invariant one).
+rotation-invariant one; ``--length 2400 24000 100000`` instead times composed and novel
+paths of those lengths against the bundled library, each in its own process with its peak
+memory, the ratios to the first length beside the goals — ``_length_scaling.py``).
 """
 
 from __future__ import annotations
@@ -39,6 +45,8 @@ from pathlib import Path  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from anywhere
 
 import numpy as np  # noqa: E402
+from _index_persist import compare as index_read_vs_build  # noqa: E402
+from _length_scaling import run as run_length  # noqa: E402
 from _reference_search import reference_segment_path  # noqa: E402
 from _timing import median_time  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
@@ -161,6 +169,52 @@ def restricted(machine: Machine) -> None:
     lib.close()
 
 
+def length_scaling(lengths: list[int], library: str = "bundled", timeout: float = 1800.0):
+    """``--length``: composed and novel paths of each length (``_length_scaling.py``), one
+    process each; time and peak memory, and each kind's ratio to its first length."""
+    print(f"\nmatch time and peak memory against path length ({library} library; first call, "
+          "one process per path: peak RSS includes the interpreter and numpy)")  # fmt: skip
+    print("| path | samples | time | segments | matched | peak RSS | time / first length "
+          "| samples / first length | goal |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    for kind in ("composed", "novel"):
+        first = None
+        for n in lengths:
+            r = run_length({"kind": kind, "samples": n, "library": library}, timeout=timeout)
+            rows.append((kind, n, r))
+            if "timeout" in r:
+                print(f"| {kind} | {n:,} | > {timeout:.0f} s (stopped) | - | - | - | - | - | - |")
+                continue
+            first = first or (n, r["seconds"])
+            ratio, grow = r["seconds"] / first[1], n / first[0]
+            goal = _length_goal(n, grow, ratio, r)
+            print(f"| {kind} | {n:,} | {r['seconds']:.1f} s | {r['segments']} | "
+                  f"{100 * r['matched']:.0f} % | {r['peak_mb']:.0f} MB | x{ratio:.1f} | "
+                  f"x{grow:g} | {goal} |")  # fmt: skip
+    return rows
+
+
+def _length_goal(n: int, grow: float, ratio: float, r: dict) -> str:
+    """The issue-13 goal a row is held to, and whether it is met."""
+    parts = []
+    if grow > 1:
+        parts.append(f"x{1.2 * grow:g} or less: {'met' if ratio <= 1.2 * grow else 'NOT met'}")
+    if n >= 100_000:
+        ok = r["seconds"] <= 30 and r["peak_mb"] <= 1024
+        parts.append(f"<= 30 s and <= 1 GB: {'met' if ok else 'NOT met'}")
+    return "; ".join(parts) or "-"
+
+
+def index_persistence(bank, folder: Path) -> tuple[float, float, float]:
+    """Median seconds to build the 1,000 primitives' index and to read it from DuckDB."""
+    r = index_read_vs_build(bank, folder / "index.duckdb")
+    print(f"\nthe index of {len(bank.ids):,} primitives ({r['mb']:.0f} MB of arrays): build "
+          f"{r['build']:.3f} s, read back from a DuckDB file {r['read']:.3f} s "
+          "(medians of 3)")  # fmt: skip
+    return r["build"], r["read"], r["mb"]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument(
@@ -173,10 +227,20 @@ def main() -> None:
         action="store_true",
         help="only the restricted searches (rotation none, time scale 1-1) on glyph-chain",
     )
+    ap.add_argument(
+        "--length",
+        type=int,
+        nargs="+",
+        metavar="SAMPLES",
+        help="only the path-length study: composed and novel paths of these lengths",
+    )
     args = ap.parse_args()
     machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
     if args.restricted:
         restricted(machine)
+        return
+    if args.length:
+        length_scaling(args.length)
         return
     print(f"machine {machine.name}: dt {machine.dt} s; eps {EPS}; pieces {len(PIECES)}")
 
@@ -278,6 +342,8 @@ def main() -> None:
         f"{grid_info['windows'] / rate:,.0f} s"
     )
 
+    build_t, read_t, _ = index_persistence(indexes[1000].bank, Path(tmp.name))
+
     # -- time against library size
     print("\nmatch time against library size (first call: median of 3 fresh opens; warm: of 5):")
     for k in sizes:
@@ -314,6 +380,13 @@ def main() -> None:
         f"| match time, 10 -> 1,000 prims, warm / first call | x{growth:.1f} / "
         f"x{growth_first:.1f} | linear x100 | {100 / growth:.0f}x / {100 / growth_first:.0f}x "
         f"better | {cmd} |"
+    )
+    print(
+        f"| index of 1,000 prims, rebuilt per process (arc-length index + envelopes) | "
+        f"{build_t:.3f} s | read back from the library file {read_t:.3f} s | "
+        f"{read_t / build_t:.1f}x "
+        f"{'rebuilding is cheaper: not persisted' if read_t > build_t else 'reading is cheaper'} "
+        f"| {cmd} |"
     )
     print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     for lb in libs.values():
