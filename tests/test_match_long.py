@@ -24,14 +24,13 @@ def test_no_probe_samples_more_than_the_longest_matchable_piece(monkeypatch):
         return real_at(self, v)
 
     monkeypatch.setattr(PathPiece, "at", at)
-    segs, info = segment_path(index, pts, DT, 0.05)
+    segs, _ = segment_path(index, pts, DT, 0.05)
     longest = (index.counts.max() - 1) / 0.25  # path samples, at the lowest time scale
     # the index query samples the piece twice as densely as the path (arc length)
     assert max(asked) <= 2 * longest + 1 + 64
     assert len(pts) > 2 * longest
     np.testing.assert_allclose([s.end for s in segs][:-1], cuts[1:-1], atol=1.5 / len(pts))
     assert all(s.primitive is not None for s in segs)
-    assert info["rejected"] >= len(segs) // 2  # first probes of a cut, before any sampling
 
 
 @pytest.mark.parametrize("wiggle", [0.0, 1e-9])
