@@ -97,12 +97,15 @@ def test_refining_seeds_together_takes_each_seeds_own_steps(rotation):
               for _ in range(4)]  # fmt: skip
     seeds.append(Candidate(0, 390.0, 399.0, 0.0))  # too short: clamped into range first
     for give_up in (np.inf, 0.5):
-        together = refine_many(bank, seeds, path, 0.0, 1.0, opts, 0.01, give_up)
+        together, r64 = refine_many(bank, seeds, path, 0.0, 1.0, opts, 0.01, give_up)
         alone = [refine(bank, c, path, 0.0, 1.0, opts, 0.01, give_up) for c in seeds]
         for t, s in zip(together, alone, strict=True):
             assert t.prim == s.prim
             assert t.x0 == pytest.approx(s.x0, abs=1e-6)
             assert t.x1 == pytest.approx(s.x1, abs=1e-6)
+        # the RMSD it returns is the one at its own (64) points
+        at64 = [piece_rmsd(bank, c, path, 0.0, 1.0, 64, rotation).rmsd for c in together]
+        np.testing.assert_allclose(r64, at64, rtol=1e-9, atol=1e-12)
     r = rmsd_many(bank, together, path, 0.0, 1.0, 151, rotation)
     single = [piece_rmsd(bank, c, path, 0.0, 1.0, 151, rotation).rmsd for c in together]
     np.testing.assert_allclose(r, single, rtol=1e-9, atol=1e-12)

@@ -98,12 +98,16 @@ class _Residuals:
 
 def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
                 opts: SearchOptions, target: float = 0.0, give_up: float = np.inf,
-                first: bool = False, points: int | None = None) -> list[Candidate]:  # fmt: skip
+                first: bool = False, points: int | None = None):  # fmt: skip
     """:func:`._refine.refine` of every candidate, in lockstep (module notes); with
-    ``first``, all stop as soon as one is below ``target``. ``points`` uniform times
-    (default ``opts.refine_points``)."""
+    ``first``, all stop as soon as one is below ``target``.
+
+    Returns the refined candidates and their Kabsch RMSD at the ``points`` uniform times
+    (default ``opts.refine_points``) the refinement ran on, what :func:`rmsd_many` gives
+    there (inf for a primitive too short for the time-scale range: left as it came).
+    """
     dur = (b - a) * path.duration
-    out = list(cands)
+    out, rmsd = list(cands), np.full(len(cands), np.inf)
     rows, z, cvec = [], [], []
     for i, c in enumerate(cands):
         n_p = int(bank.offsets[c.prim + 1] - bank.offsets[c.prim])
@@ -115,15 +119,16 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
         z.append([c0.x0, c0.x1])
         cvec.append([0.0, n_p - 1.0, -lo, hi])
     if not rows:
-        return out
+        return out, rmsd
     k = opts.refine_points if points is None else points
     prim = np.array([cands[i].prim for i in rows])
     resid = _Residuals(bank, prim, path.at(np.linspace(a, b, k)), opts.rotation)
-    zf = _lockstep(resid, np.array(z), np.array(cvec), target * target * k,
-                   give_up * give_up * k, first)  # fmt: skip
+    zf, cost = _lockstep(resid, np.array(z), np.array(cvec), target * target * k,
+                         give_up * give_up * k, first)  # fmt: skip
     for j, i in enumerate(rows):
         out[i] = Candidate(cands[i].prim, float(zf[j, 0]), float(zf[j, 1]), cands[i].score)
-    return out
+    rmsd[rows] = np.sqrt(np.maximum(cost, 0.0) / k)
+    return out, rmsd
 
 
 def _free_step(h: np.ndarray, g: np.ndarray, det: np.ndarray) -> np.ndarray:
@@ -200,8 +205,8 @@ def _box_qp_many(h: np.ndarray, g: np.ndarray, slack: np.ndarray, tol: np.ndarra
 
 
 def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, give_up: float,
-              first: bool) -> np.ndarray:  # fmt: skip
-    """:func:`._refine._gauss_newton` for every row of z at once."""
+              first: bool) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """:func:`._refine._gauss_newton` for every row of z at once: the final z and costs."""
     m = z.shape[0]
     rows = np.arange(m)
     cost, res, dpr = resid(rows, z)
@@ -234,4 +239,4 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
         run[budget <= 0] = False
         if acc.size:
             jtj[acc], g[acc] = resid.normal_equations(res[acc], dpr[acc])
-    return z
+    return z, cost

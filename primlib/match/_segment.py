@@ -34,9 +34,10 @@ matches" is monotone in b, and always a prefix that matches followed by one that
 
 A probe "matches" when some candidate, refined continuously (:mod:`._refine`), has Kabsch
 RMSD below ε against the piece, compared at the path's own samples in the piece (cuts lie on
-samples; 16 points at least) and the primitive at the corresponding uniform times — the RMSD
-reported in the segment. The segment's primitive is then the lowest-RMSD one among the
-match and the search's seeds for the final prefix (:meth:`_Segmenter.best`).
+samples; a piece is never shorter than 8 samples) and the primitive at the corresponding
+uniform times — the RMSD reported in the segment. The segment's primitive is then the
+lowest-RMSD one among the match and the search's seeds for the final prefix
+(:meth:`_Segmenter.best`).
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from primlib.match._index_search import IndexSearch
 from primlib.match._kabsch import ROTATION_MODES
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._refine import clamp, piece_rmsd
-from primlib.match._refine_many import refine_many, rmsd_many
+from primlib.match._refine_many import refine_many
 from primlib.match._reject import rejects
 from primlib.match._types import Segment
 
@@ -138,37 +139,31 @@ class _Segmenter:
         self.extensions = 0
         self.rejected = 0
         self.sig = 1  # the minimum step σ in samples (set by run)
-        self.failed: tuple[float, float, list[Candidate]] | None = None  # the last failing
-        # whole search: (a, b, its seeds)
+        # the last failing whole search: (a, b, its seeds, them refined, best first)
+        self.failed: tuple[float, float, list[Candidate], list[Candidate]] | None = None
 
     def _try(self, a: float, b: float, seeds: list[Candidate], kc: int, converge=False):
-        """A seed within eps of [a, b] as it comes or once refined (or None), and the lowest
-        RMSD any seed reached (inf without seeds).
+        """A seed within eps of [a, b] as it comes or once refined (or None), and every
+        seed refined, with its RMSD (inf for a primitive too short for the time scales).
 
-        Every seed's exact RMSD is computed at once; the seeds before the first that already
-        matches are refined together (:func:`._refine_many.refine_many`) on the check's own
-        kc points until one is below eps (a match), giving up on those that will not be.
+        The seeds are refined together (:func:`._refine_many.refine_many`) on the check's own
+        kc points until one is below eps (a match; one that matches as it comes stops them
+        before any step), giving up on those that will not be; with ``converge``, each to
+        its optimum (its RMSD then places the next split).
         """
         bank, path, opts, eps = self.bank, self.path, self.opts, self.eps
         dur = (b - a) * path.duration
         shortest = opts.time_scale[0] * dur / bank.dt * (1 - 1e-9)
         # a primitive too short for the time-scale range is clamped below it: not a match
         cands = [c for c in (clamp(bank, s, dur, opts) for s in seeds) if c.x1 - c.x0 >= shortest]
-        r0 = rmsd_many(bank, cands, path, a, b, kc, opts.rotation)
-        hit = int(np.argmax(r0 < eps)) if np.any(r0 < eps) and not converge else len(cands)
         target = 0.0 if converge else eps * (1 - 1e-9)
-        refined = refine_many(bank, cands[:hit], path, a, b, opts, target=target, give_up=eps,
-                              first=True, points=kc)  # fmt: skip
-        r1 = rmsd_many(bank, refined, path, a, b, kc, opts.rotation)
-        lowest = float(min(r0.min(initial=np.inf), r1.min(initial=np.inf)))
-        for c, r in zip(refined, r1, strict=True):
-            if r < eps:
-                return _Found(c, float(r), True), lowest
-        if hit < len(cands):
-            return _Found(cands[hit], float(r0[hit]), False), lowest
-        return None, lowest
+        refined, r = refine_many(bank, cands, path, a, b, opts, target=target, give_up=eps,
+                                 first=not converge, points=kc)  # fmt: skip
+        hit = np.flatnonzero(r < eps)
+        found = _Found(refined[hit[0]], float(r[hit[0]]), True) if hit.size else None
+        return found, refined, r
 
-    def probe(self, a: float, b: float):
+    def probe(self, a: float, b: float) -> tuple[_Found | None, float]:
         """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?
 
         The whole search: an up-front rejection (:mod:`._reject`), then the seeds. Returns
@@ -190,45 +185,70 @@ class _Segmenter:
             self.rejected += 1  # no primitive can be within eps: the exact check would say so
             return None, np.inf
         seeds = self.seeder.seeds(self.path, a, b, self.eps)
-        found, lowest = self._try(a, b, seeds, kc)
+        found, refined, r = self._try(a, b, seeds, kc)
         if found is None:
-            self.failed = (a, b, seeds)
-        return found, lowest
+            self.failed = (a, b, seeds, [refined[i] for i in np.argsort(r, kind="stable")])
+        return found, float(r.min(initial=np.inf))
+
+    def _stretched(self, a: float, b_old: float, b: float, cands: list[Candidate], converge):
+        """Candidates for [a, b_old] stretched to [a, b] at their time scales, tried."""
+        k = (b - a) / (b_old - a)
+        cands = [Candidate(c.prim, c.x0, c.x0 + k * (c.x1 - c.x0), 0.0) for c in cands]
+        found, _, r = self._try(a, b, cands, self.path.confirm_points(a, b), converge)
+        return found, float(r.min(initial=np.inf))
 
     def extend(self, a: float, b_old: float, b: float, found: _Found):
         """The match ``found`` of [a, b_old] stretched to [a, b] at the same time scale and
-        refined (a success is a match like any other; a failure proves nothing), and the
-        lowest RMSD it reached."""
+        refined to its optimum (a success is a match like any other; a failure proves
+        nothing), and the RMSD it reached."""
         self.extensions += 1
-        cand = found.cand
-        x1 = cand.x0 + (cand.x1 - cand.x0) * (b - a) / (b_old - a)
-        return self._try(a, b, [Candidate(cand.prim, cand.x0, x1, 0.0)],
-                         self.path.confirm_points(a, b), converge=True)  # fmt: skip
+        return self._stretched(a, b_old, b, [found.cand], True)
+
+    def _first_match(self, ia: int, sig: int, guess: int):
+        """Step back from a prefix as long as ``guess`` until one matches: after a whole
+        search fails at L, its seeds shrunk to where their RMSD predicts eps (a misfit
+        growing like L², 10 % margin) are tried first, then a whole search at L/2.
+
+        Returns (match, its end, the shortest failing end (None if none), its RMSD, how it
+        failed) or None when nothing of ``_MIN_SAMPLES`` samples or more matches."""
+        last = self.path.n - 1
+        v = 1.0 / last
+        length = min(max(guess, sig), last - ia)
+        hi, r_hi = None, np.inf
+        found, r = self.probe(ia * v, (ia + length) * v)
+        while found is None:
+            if length <= sig or length < _MIN_SAMPLES - 1:
+                return None
+            hi, r_hi = ia + length, r
+            near = int(0.9 * length * math.sqrt(self.eps / r)) if np.isfinite(r) else 0
+            if max(length // 2, _MIN_SAMPLES - 2) < near < length and self.failed is not None:
+                self.extensions += 1
+                found, r_near = self._stretched(ia * v, hi * v, (ia + near) * v,
+                                                self.failed[3], False)  # fmt: skip
+                if found is not None:
+                    return found, ia + near, hi, r_hi, {"probe"}
+            length = max(sig, length // 2)
+            found, r = self.probe(ia * v, (ia + length) * v)
+        return found, ia + length, hi, r_hi, {"probe"} if hi is not None else set()
 
     def longest_prefix(self, ia: int, sig: int, guess: int) -> tuple[int, _Found] | None:
         """The longest matching prefix from sample ia (module notes): its end sample and
         match, or None when no prefix of ``_MIN_SAMPLES`` samples or more matches."""
         last = self.path.n - 1
         v = 1.0 / last
-        length = min(max(guess, sig), last - ia)
-        hi = None  # shortest end known to fail ...
-        tried = set()  # ... by the whole search ("probe") and/or the match stretched ("extend")
-        while (found := self.probe(ia * v, (ia + length) * v))[0] is None:
-            if length <= sig or length < _MIN_SAMPLES - 1:
-                return None
-            hi, tried, r_hi, length = ia + length, {"probe"}, found[1], max(sig, length // 2)
-        found = found[0]
-        lo, r_lo = ia + length, found.rmsd
-        if hi is None:
-            r_hi = np.inf
+        first = self._first_match(ia, sig, guess)
+        if first is None:
+            return None
+        found, lo, hi, r_hi, tried = first
+        r_lo = np.nan  # a first match's RMSD is only below eps, not its optimum: bisect once
         while True:
             side = 0  # which end the last extension moved: +1 lo, -1 hi
             while lo < last and (hi is None or hi - lo > sig):
-                iv = (
-                    min(last, ia + 2 * (lo - ia))
-                    if hi is None
-                    else _split(lo - ia, hi - ia, r_lo, r_hi, self.eps) + ia
-                )
+                if hi is None:
+                    r = found.rmsd if np.isnan(r_lo) else r_lo  # an upper bound will do
+                    iv = min(last, ia + max(lo - ia + sig, _gallop(lo - ia, r, self.eps)))
+                else:
+                    iv = _split(lo - ia, hi - ia, r_lo, r_hi, self.eps) + ia
                 ext, r = self.extend(ia * v, lo * v, iv * v, found)
                 if ext is None:
                     hi, tried, r_hi = iv, {"extend"}, r
@@ -251,7 +271,7 @@ class _Segmenter:
                 ext, _ = self.probe(ia * v, hi * v)
             if ext is None:
                 return lo, found
-            lo, found, hi, r_lo, r_hi = hi, ext, None, ext.rmsd, np.inf
+            lo, found, hi, r_lo, r_hi = hi, ext, None, np.nan, np.inf
 
     def best(self, a: float, b: float, found: _Found) -> Candidate:
         """The lowest-RMSD match of [a, b] among the probe's match and the search's seeds,
@@ -270,16 +290,15 @@ class _Segmenter:
         seeds = (clamp(bank, s, dur, opts) for s in seeds)
         cands = [found.cand, *(c for c in seeds if c.x1 - c.x0 >= shortest)]
         kc = path.confirm_points(a, b)
-        both = cands + refine_many(bank, cands, path, a, b, opts, give_up=found.rmsd)
-        r = rmsd_many(bank, both, path, a, b, kc, opts.rotation)
-        r[0] = min(r[0], found.rmsd)  # the match as found, at the probe's own RMSD
-        return both[int(np.argmin(r))]
+        # a refinement only takes steps that lower the cost (on the check's kc points)
+        refined, r = refine_many(bank, cands, path, a, b, opts, give_up=found.rmsd, points=kc)
+        return refined[int(np.argmin(r))]
 
     def _seeds_near(self, a: float, b: float) -> list[Candidate]:
         """Seeds for [a, b]: the last failing whole search's when it started at a and ended
         at most σ after b (shrunk to [a, b]), else a new search."""
         if self.failed is not None:
-            fa, fb, seeds = self.failed
+            fa, fb, seeds, _ = self.failed
             if fa == a and 0 < (fb - b) * (self.path.n - 1) <= self.sig + 1e-6:
                 k = (b - a) / (fb - a)
                 return [Candidate(c.prim, c.x0, c.x0 + k * (c.x1 - c.x0), c.score) for c in seeds]
@@ -341,14 +360,25 @@ class _Segmenter:
 
 
 def _split(lo: int, hi: int, r_lo: float, r_hi: float, eps: float) -> int:
-    """Where the RMSD reaches eps between a match of lo samples (RMSD r_lo < eps) and a
-    failure of hi (r_hi), strictly between: a power law r ∝ Lᵖ through both (regula falsi in
-    log-log: a piece's misfit grows like a power of its length); the midpoint when r_hi is
-    unknown."""
-    if not (np.isfinite(r_hi) and r_hi > eps and 0 < r_lo < eps):
+    """Where the RMSD reaches eps between a match of lo samples (RMSD r_lo < eps, nan when
+    only known to be below eps) and a failure of hi (r_hi), strictly between: a power law
+    r ∝ Lᵖ through both (regula falsi in log-log: a piece's misfit grows like a power of its
+    length), through the failure alone with p = 2 (a curvature mismatch) when r_lo is
+    unknown; the midpoint when r_hi is unknown too."""
+    if not (np.isfinite(r_hi) and r_hi > eps):
         return (lo + hi + 1) // 2
-    t = math.log(eps / r_lo) / math.log(r_hi / r_lo)
-    return min(hi - 1, max(lo + 1, int(round(lo * (hi / lo) ** t))))
+    if 0 < r_lo < eps:
+        at = lo * (hi / lo) ** (math.log(eps / r_lo) / math.log(r_hi / r_lo))
+    else:
+        at = hi * math.sqrt(eps / r_hi)
+    return min(hi - 1, max(lo + 1, int(round(at))))
+
+
+def _gallop(lo: int, r_lo: float, eps: float) -> int:
+    """The next prefix length to try after a match of lo samples at RMSD r_lo: where r ∝ L²
+    reaches eps, with a 10 % margin, from 1/8 longer to twice as long."""
+    grow = 1.1 * math.sqrt(eps / r_lo) if 0 < r_lo < eps else 2.0
+    return int(math.ceil(lo * min(2.0, max(1.125, grow))))
 
 
 def _unmatched(a: float, b: float, d: int) -> Segment:
