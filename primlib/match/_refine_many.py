@@ -16,16 +16,7 @@ import numpy as np
 from primlib.match._interp import cubic_at
 from primlib.match._kabsch import _rotation_2d, kabsch
 from primlib.match._options import Candidate, PathPiece, SearchOptions
-from primlib.match._refine import (
-    _AMAT,
-    _BUDGET,
-    _GAIN,
-    _MOVED,
-    clamp,
-    duration_range,
-    hopeless,
-    rotation_coupling,
-)
+from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, clamp, duration_range, hopeless
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
@@ -57,6 +48,9 @@ def _gather(bank: BankIndex, prim: np.ndarray, x: np.ndarray, derivative: bool =
     return out.reshape(m, k, -1)
 
 
+_EYE2, _EYE3 = np.eye(2), np.eye(3)
+
+
 class _Residuals:
     """:class:`._refine._Residual` for m seeds: cost (m,), residual and R·dp (m, k, d)."""
 
@@ -64,6 +58,8 @@ class _Residuals:
         self.bank, self.prim, self.rotation = bank, prim, rotation
         self.qc = q - q.mean(axis=0)
         self.s = np.linspace(0.0, 1.0, q.shape[0])
+        self.w = np.stack([1.0 - self.s, self.s], axis=1)  # ∂x/∂(x0, x1) at each point
+        self.ww = self.w[:, :, None] * self.w[:, None, :]
 
     def rotations(self, h: np.ndarray) -> np.ndarray:
         m, d, _ = h.shape
@@ -86,14 +82,30 @@ class _Residuals:
         return np.einsum("mka,mka->m", res, res), res, dp @ r.transpose(0, 2, 1)
 
     def normal_equations(self, res: np.ndarray, dpr: np.ndarray):
-        j1 = dpr * self.s[:, None]
-        j0 = dpr - j1
-        jac = np.stack([j0 - j0.mean(axis=1, keepdims=True),
-                        j1 - j1.mean(axis=1, keepdims=True)], axis=3)  # fmt: skip
-        jtj = np.einsum("mkac,mkae->mce", jac, jac)
-        red = jtj - rotation_coupling(self.qc - res, jac, self.rotation)
-        red += 1e-9 * jtj * np.eye(2)
-        return red, np.einsum("mkac,mka->mc", jac, res)
+        """:meth:`._refine._Residual.normal_equations` for m seeds, from moments: the
+        Jacobian's columns are w_c(s_j)·R dp_j, centred; Jᵀr needs no centring (Σ r = 0),
+        nor does the rotation coupling B = Σ u × J (Σ u = 0)."""
+        k = res.shape[1]
+        mom = dpr.transpose(0, 2, 1) @ self.w  # Σ_j w_c(j) R dp_j, (m, d, 2)
+        jtj = np.einsum("mk,kce->mce", np.einsum("mka,mka->mk", dpr, dpr), self.ww)
+        jtj -= mom.transpose(0, 2, 1) @ mom / k
+        g = np.einsum("mka,mka->mk", dpr, res) @ self.w
+        red = jtj + 1e-9 * jtj * _EYE2
+        if self.rotation == "none":
+            return red, g
+        u = self.qc - res  # the rotated, centred primitive
+        if u.shape[2] == 3 and self.rotation == "full":
+            u0, u1, u2 = u[..., 0], u[..., 1], u[..., 2]
+            d0, d1, d2 = dpr[..., 0], dpr[..., 1], dpr[..., 2]
+            cr = np.stack([u1 * d2 - u2 * d1, u2 * d0 - u0 * d2, u0 * d1 - u1 * d0], axis=1)
+            b = (cr @ self.w).transpose(0, 2, 1)  # Σ_j w_c(j) u_j × R dp_j, (m, 2, 3)
+            uu = np.einsum("mka,mkb->mab", u, u)
+            tr = np.trace(uu, axis1=1, axis2=2)[:, None, None]
+            inertia = (1.0 + 2e-12) * tr * _EYE3 - uu  # + 1e-12 of its trace: never singular
+            return red - b @ np.linalg.solve(inertia, b.transpose(0, 2, 1)), g
+        b = (u[..., 0] * dpr[..., 1] - u[..., 1] * dpr[..., 0]) @ self.w  # (m, 2)
+        inertia = np.einsum("mka,mka->m", u[..., :2], u[..., :2])
+        return red - b[:, :, None] * b[:, None, :] / np.maximum(inertia, 1e-300)[:, None, None], g
 
 
 def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,

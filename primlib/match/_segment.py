@@ -206,8 +206,9 @@ class _Segmenter:
 
     def _first_match(self, ia: int, sig: int, guess: int):
         """Step back from a prefix as long as ``guess`` until one matches: after a whole
-        search fails at L, its seeds shrunk to where their RMSD predicts eps (a misfit
-        growing like L², 10 % margin) are tried first, then a whole search at L/2.
+        search fails at L, its refined seeds are tried shrunk (at their time scales) to
+        where their RMSD predicts eps (a misfit growing like L², 10 % margin) and to L/2,
+        before a whole search at L/2.
 
         Returns (match, its end, the shortest failing end (None if none), its RMSD, how it
         failed) or None when nothing of ``_MIN_SAMPLES`` samples or more matches."""
@@ -219,15 +220,17 @@ class _Segmenter:
         while found is None:
             if length <= sig or length < _MIN_SAMPLES - 1:
                 return None
-            hi, r_hi = ia + length, r
+            hi, r_hi, half = ia + length, r, max(sig, length // 2)
             near = int(0.9 * length * math.sqrt(self.eps / r)) if np.isfinite(r) else 0
-            if max(length // 2, _MIN_SAMPLES - 2) < near < length and self.failed is not None:
-                self.extensions += 1
-                found, r_near = self._stretched(ia * v, hi * v, (ia + near) * v,
-                                                self.failed[3], False)  # fmt: skip
-                if found is not None:
-                    return found, ia + near, hi, r_hi, {"probe"}
-            length = max(sig, length // 2)
+            failed = self.failed
+            if failed is not None and failed[:2] == (ia * v, hi * v) and failed[3]:
+                for at in sorted({min(max(near, half), length - 1), half}, reverse=True):
+                    if at >= _MIN_SAMPLES - 1:
+                        self.extensions += 1
+                        found, _ = self._stretched(ia * v, hi * v, (ia + at) * v, failed[3], False)
+                        if found is not None:
+                            return found, ia + at, hi, r_hi, {"probe"}
+            length = half
             found, r = self.probe(ia * v, (ia + length) * v)
         return found, ia + length, hi, r_hi, {"probe"} if hi is not None else set()
 
