@@ -246,3 +246,23 @@ def test_transform_exact_for_any_scale_and_rotation(k, angles, seed):
     tq = np.arange(ud.shape[0]) * m.dt
     target = continuous_output(m, u, k * tq) @ r.T
     np.testing.assert_allclose(m.simulate(ud), target, atol=1e-8 * max(1.0, np.abs(target).max()))
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 40.0, 3e3])
+def test_expm_times_equals_one_pade_exponential_per_matrix(xyz, scale):
+    from scipy import linalg, signal
+
+    from primlib.splice._continuous import expm_times
+
+    rng = np.random.default_rng(7)
+    num, den = xyz.plants[xyz.axes[0]]
+    a, b, _, _ = signal.tf2ss(num, den)
+    m = np.zeros((a.shape[0] + 1, a.shape[0] + 1))
+    m[:-1, :-1], m[:-1, -1] = a, b[:, 0]
+    # the machine's own augmented matrix, and a random one with complex, fast modes
+    for mat in (m, rng.normal(size=(4, 4)) * scale):
+        tau = np.concatenate([[0.0], rng.uniform(0.0, xyz.dt, 200)])
+        got = expm_times(mat, tau)
+        want = linalg.expm(mat[None] * tau[:, None, None])
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-13 * np.abs(want).max())
+    assert expm_times(m, np.zeros(0)).shape == (0, *m.shape)

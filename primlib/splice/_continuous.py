@@ -8,10 +8,12 @@ module computes it without interpolation error.
 
 from __future__ import annotations
 
-import numpy as np
-from scipy import linalg, signal
+import math
 
-__all__ = ["continuous_output", "plant_input", "resample_zoh", "resample_linear"]
+import numpy as np
+from scipy import signal
+
+__all__ = ["continuous_output", "plant_input", "resample_zoh", "resample_linear", "expm_times"]
 
 
 def plant_input(machine, u: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
@@ -51,9 +53,10 @@ def continuous_output(
     The plant input ``v`` (see :func:`plant_input`) is held over [j dt, (j + 1) dt); the
     state at the grid points follows the ZOH recursion ``x[j+1] = Ad x[j] + Bd v[j]`` and
     between them ``y(j dt + tau) = C (e^{A tau} x[j] + Gamma(tau) B v[j]) + D v[j]``, with
-    ``e^{A tau}`` and ``Gamma(tau) B`` read off one batched matrix exponential of
-    ``[[A, B], [0, 0]] tau``. After the last sample the last input is held; before t = 0
-    the machine is at rest (output 0); at t = 0 a direct feedthrough already acts.
+    ``e^{A tau}`` and ``Gamma(tau) B`` read off the matrix exponentials of
+    ``[[A, B], [0, 0]] tau`` (:func:`expm_times`, all tau at once). After the last sample
+    the last input is held; before t = 0 the machine is at rest (output 0); at t = 0 a
+    direct feedthrough already acts.
 
     Parameters
     ----------
@@ -93,13 +96,51 @@ def continuous_output(
         ad, bd, _, _, _ = signal.cont2discrete((a_c, b_c, c_c, d_c), dt, method="zoh")
         nums, den_d = signal.ss2tf(ad, bd, np.eye(nx), np.zeros((nx, 1)))
         x = np.stack([signal.lfilter(nums[r], den_d, vi) for r in range(nx)], axis=1)
-        aug = np.zeros((tau.size, nx + 1, nx + 1))
-        aug[:, :nx, :nx] = a_c[None] * tau[:, None, None]
-        aug[:, :nx, nx] = b_c[:, 0][None] * tau[:, None]
-        e = linalg.expm(aug)
+        aug = np.zeros((nx + 1, nx + 1))
+        aug[:nx, :nx] = a_c
+        aug[:nx, nx] = b_c[:, 0]
+        e = expm_times(aug, tau)
         xs = np.einsum("mab,mb->ma", e[:, :nx, :nx], x[j]) + e[:, :nx, nx] * vi[j][:, None]
         out[pos, i] = xs @ c_c[0] + d_c[0, 0] * vi[j]
     return out
+
+
+_TAYLOR = 18  # degree of the series; the remainder at norm 1/2 is < 0.5^19 / 19! e^0.5 < 2e-23
+
+
+def expm_times(m: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """``e^{m τ}`` for every τ at once: the matrix exponentials of one matrix times scalars.
+
+    All of them share ``m``'s powers, so the Taylor series is one product of the (len(τ),
+    degree + 1) table of ``τʲ`` with the (degree + 1) precomputed ``(m / 2ˢ)ʲ / j!``; s
+    (scaling and squaring) is chosen so that ``‖m‖₁ max|τ| / 2ˢ <= 1/2``, where degree 18
+    leaves a remainder below 2e-23 relative, and the s squarings are batched matrix
+    products. ``scipy.linalg.expm`` on the stack (m, k, k) gives the same to rounding,
+    one Padé approximant per matrix: ~100x slower for the 10⁴-10⁵ times of a long path.
+
+    Parameters
+    ----------
+    m : array, shape (k, k)
+    tau : array, shape (p,)
+
+    Returns
+    -------
+    array, shape (p, k, k)
+    """
+    m = np.asarray(m, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    k = m.shape[0]
+    norm = float(np.abs(m).sum(axis=0).max()) * (float(np.abs(tau).max()) if tau.size else 0.0)
+    s = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0 else 0
+    x = m / 2.0**s
+    terms = [np.eye(k)]
+    for j in range(1, _TAYLOR + 1):
+        terms.append(terms[-1] @ x / j)
+    powers = tau[:, None] ** np.arange(_TAYLOR + 1)
+    e = (powers @ np.stack(terms).reshape(_TAYLOR + 1, k * k)).reshape(tau.size, k, k)
+    for _ in range(s):
+        e = e @ e
+    return e
 
 
 def resample_linear(values: np.ndarray, positions: np.ndarray) -> np.ndarray:
