@@ -255,7 +255,7 @@ def test_learn_without_primitives_starts_cold(tmp_path):
         main, ["--db", str(db), "learn", str(f), "--machine", "xyz", "-n", "2", "--json"]
     )
     assert res.exit_code == 0, res.output
-    out = json.loads(res.output)
+    out = json.loads(res.stdout)
     assert out["start"] == "cold"
     assert any("no warm start" in note for note in out["notes"])
 
@@ -269,7 +269,7 @@ def test_learn_master_slave_law_on_the_two_axis_stage(tmp_path, law):
     args = ["--db", str(db), "learn", str(f), "--machine", "xy-pdccilc", "--cold"]
     res = runner.invoke(main, [*args, "--law", law, "-n", "3", "--json"])
     assert res.exit_code == 0, res.output
-    out = json.loads(res.output)
+    out = json.loads(res.stdout)
     its = out["iterations"]
     assert len(its) == 4 and out["start"] == "cold"
     # the master-slave result's own contour measure is reported per trial, and learns
@@ -298,7 +298,7 @@ def test_learn_long_path_checks_convergence_without_a_dense_svd(tmp_path):
         main, ["--db", str(db), "learn", str(f), "--machine", "xyz", "--cold", "-n", "2", "--json"]
     )
     assert res.exit_code == 0, res.output
-    out = json.loads(res.output)
+    out = json.loads(res.stdout)
     assert len(out["iterations"]) == 3
     assert out["iterations"][-1]["rms"] < 1e-2 * out["iterations"][0]["rms"]
 

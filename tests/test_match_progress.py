@@ -57,3 +57,19 @@ def test_stderr_progress_draws_a_bar_and_the_segments_found(capsys):
         "match: [#####.....] 6/12 (50 %), 3 segments",
         "match: [##########] 12/12 (100 %), 7 segments",
     ]
+
+
+def test_learn_reports_its_match_progress():
+    machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    lib = pl.Library()
+    lib.add_machine(machine)
+    for name in ("circle", "line-diagonal"):
+        p = pl.Trajectory.from_csv(ROOT / "data" / "library" / f"{name}.csv")
+        lib.add(p, np.zeros_like(p.sample(machine.dt)), machine="xyz", name=name)
+    path = pl.Trajectory.from_csv(ROOT / "data" / "paths" / "corner-and-arc.csv")
+    calls = []
+    run = lib.starter.learn(
+        path, "xyz", iterations=1, contour=False, progress=lambda *c: calls.append(c)
+    )
+    n = int(round(path.duration / machine.dt))
+    assert run.start == "warm" and calls[-1][:2] == (n, n)

@@ -19,6 +19,7 @@ from primlib.cli import main
 from primlib.cli._library import _open_waiting
 from primlib.cli._options import parse_origin
 from primlib.cli._output import FIGURE_FORMATS, check_output, segment_lines
+from primlib.cli._progress import match_progress
 from primlib.pipeline import LAWS
 
 if TYPE_CHECKING:
@@ -194,6 +195,7 @@ def learn(
     opts = {"iterations": iterations, "eps": eps, "band": band, "law": law, "tol": tol}
     if origin is not None:
         opts["origin"] = origin
+    opts["progress"] = match_progress()  # a long path's match shows its progress
     # Learn with the library open read-only (other readers and writers are not locked out
     # for the whole run); take the write lock only to store the result.
     with Library(db, read_only=True, create=False) as lib:

@@ -18,7 +18,7 @@ import click
 from primlib._errors import InputError
 from primlib.cli import main
 from primlib.cli._options import parse_origin
-from primlib.cli._progress import stderr_progress
+from primlib.cli._progress import match_progress
 from primlib.defaults import TIME_SCALE
 
 __all__ = ["match"]
@@ -61,12 +61,6 @@ def _check_numbers(eps: float | None, min_segment: float | None) -> None:
         raise InputError(f"--eps: expected a tolerance > 0, got {eps:g}")
     if min_segment is not None and not (math.isfinite(min_segment) and min_segment >= 0):
         raise InputError(f"--min-segment: expected a duration >= 0 s, got {min_segment:g}")
-
-
-def _match_progress():
-    """A bar a second on stderr once matching has taken 2 s (stdout stays clean): path
-    samples covered and segments found."""
-    return stderr_progress("match: path samples", after=2.0, every=1.0, bar=20, found="segments")
 
 
 @main.command("match")
@@ -182,7 +176,7 @@ def match(
         if min_segment is not None:  # else the library's default (a server's too)
             kw["min_segment"] = min_segment
         if not ctx.find_root().obj.get("remote"):
-            kw["progress"] = _match_progress()
+            kw["progress"] = match_progress()
         ws = None
         if out_file is not None:
             kw.update({} if origin is None else {"origin": origin})

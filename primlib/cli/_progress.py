@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import click
 
-__all__ = ["stderr_progress"]
+__all__ = ["stderr_progress", "match_progress"]
 
 
 def stderr_progress(
@@ -72,3 +72,9 @@ def stderr_progress(
             click.echo(line, err=True)
 
     return report
+
+
+def match_progress() -> Callable[..., None]:
+    """The matcher's progress (``match`` and ``learn``): a bar a second on stderr once
+    matching has taken 2 s, with the path samples covered and the segments found."""
+    return stderr_progress("match: path samples", after=2.0, every=1.0, bar=20, found="segments")

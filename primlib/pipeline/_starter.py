@@ -12,7 +12,7 @@ machine model and primitive set). Data flows one way: the store never calls back
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from os import PathLike
 from typing import Any
@@ -309,6 +309,7 @@ class WarmStarter:
         tol: float | None = None,
         contour: bool = True,
         origin: Any = None,
+        progress: Callable[[int, int, int], None] | None = None,
     ) -> LearnRun:
         """Warm start (unless ``cold``), then ILC on the machine's model.
 
@@ -332,6 +333,8 @@ class WarmStarter:
             Also compute the RMS contour error per trial.
         origin : array of shape (d,), optional
             Where the path starts on the machine (absolute), for the warm start.
+        progress : callable, optional
+            The match's ``progress(done, total, segments)`` (:func:`primlib.match.match_path`).
 
         Returns
         -------
@@ -348,7 +351,8 @@ class WarmStarter:
         ws = None
         if not cold:
             try:
-                ws = self.warm_start(traj, machine, eps, band=band, origin=origin)
+                kw = {} if progress is None else {"progress": progress}
+                ws = self.warm_start(traj, machine, eps, band=band, origin=origin, **kw)
             except NoMatchError as exc:
                 notes.append(f"no warm start ({exc}); starting from zero")
         res = learn_on_model(
