@@ -110,9 +110,10 @@ class _Residuals:
 
 def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
                 opts: SearchOptions, target: float = 0.0, give_up: float = np.inf,
-                first: bool = False, points: int | None = None):  # fmt: skip
+                first: bool = False, points: int | None = None, rtol: float = _GAIN):  # fmt: skip
     """:func:`._refine.refine` of every candidate, in lockstep (module notes); with
-    ``first``, all stop as soon as one is below ``target``.
+    ``first``, all stop as soon as one is below ``target``; a seed whose step gained less
+    than ``rtol`` of its cost has converged.
 
     Returns the refined candidates and their Kabsch RMSD at the ``points`` uniform times
     (default ``opts.refine_points``) the refinement ran on, what :func:`rmsd_many` gives
@@ -136,7 +137,7 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
     prim = np.array([cands[i].prim for i in rows])
     resid = _Residuals(bank, prim, path.at(np.linspace(a, b, k)), opts.rotation)
     zf, cost = _lockstep(resid, np.array(z), np.array(cvec), target * target * k,
-                         give_up * give_up * k, first)  # fmt: skip
+                         give_up * give_up * k, first, rtol)  # fmt: skip
     for j, i in enumerate(rows):
         out[i] = Candidate(cands[i].prim, float(zf[j, 0]), float(zf[j, 1]), cands[i].score)
     rmsd[rows] = np.sqrt(np.maximum(cost, 0.0) / k)
@@ -217,7 +218,7 @@ def _box_qp_many(h: np.ndarray, g: np.ndarray, slack: np.ndarray, tol: np.ndarra
 
 
 def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, give_up: float,
-              first: bool) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+              first: bool, rtol: float = _GAIN) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """:func:`._refine._gauss_newton` for every row of z at once: the final z and costs."""
     m = z.shape[0]
     rows = np.arange(m)
@@ -246,7 +247,7 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
         lam[acc] = np.where(lam[acc] > 1e-6, lam[acc] / 10.0, 0.0)
         lam[rej] = np.maximum(lam[rej] * 10.0, 1e-4)
         run[rej[lam[rej] > 1e8]] = False
-        done = (moved < _MOVED) | (gain[acc] < _GAIN * cost[acc]) | (cost[acc] < stop)
+        done = (moved < _MOVED) | (gain[acc] < rtol * cost[acc]) | (cost[acc] < stop)
         run[acc[done | hopeless(cost[acc], gain[acc], previous[acc], give_up)]] = False
         run[budget <= 0] = False
         if acc.size:

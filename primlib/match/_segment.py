@@ -157,8 +157,9 @@ class _Segmenter:
         # a primitive too short for the time-scale range is clamped below it: not a match
         cands = [c for c in (clamp(bank, s, dur, opts) for s in seeds) if c.x1 - c.x0 >= shortest]
         target = 0.0 if converge else eps * (1 - 1e-9)
+        # converged to 1e-4 of the cost: the RMSD only places the next split
         refined, r = refine_many(bank, cands, path, a, b, opts, target=target, give_up=eps,
-                                 first=not converge, points=kc)  # fmt: skip
+                                 first=not converge, points=kc, rtol=1e-4)  # fmt: skip
         hit = np.flatnonzero(r < eps)
         found = _Found(refined[hit[0]], float(r[hit[0]]), True) if hit.size else None
         return found, refined, r
