@@ -17,27 +17,34 @@ Where this differs from the paper (for speed; the answer is the same wherever "p
 matches" is monotone in b, and always a prefix that matches followed by one that does not):
 
 * The first probe from a cut is as long as the previous segment (the whole remainder for
-  the first cut); failing probes halve it until one matches. From there the split gallops
-  (doubling the prefix) and then bisects between the longest prefix that matched and the
-  shortest that failed, down to σ. On a path the library does not hold, segments are a few
-  dozen samples long and the paper's first probes (the remainder, its half, ...) all fail;
-  galloping up from the previous length skips them. The trade-off: a prefix longer than
-  twice the last one that matched, after a shorter one failed, is not looked for (a
-  non-monotone case; the paper's halving finds it only when it lies on its probe points).
+  the first cut); while it fails, the failing search's seeds are tried shrunk (at their
+  time scales) to where their RMSD predicts ε and to half the length, then a whole search
+  at half the length. From the first match the split gallops (to where the match's RMSD,
+  growing like L², predicts ε: 1/8 to 2× longer), then narrows the bracket between the
+  longest prefix that matched and the shortest that failed down to σ, placing each split
+  where a power law r ∝ Lᵖ through both ends' RMSDs reaches ε (regula falsi in log-log,
+  Illinois-damped; the midpoint while an end's RMSD is unknown). On a path the library
+  does not hold, segments are a few dozen samples long and the paper's first probes (the
+  remainder, its half, ...) all fail; starting from the previous length skips them. The
+  trade-off: a prefix much longer than the last one that matched, after a shorter one
+  failed, is not looked for (a non-monotone case; the paper's halving finds it only when it
+  lies on its probe points).
 * Inside that search a probe only stretches the match of the longest prefix so far to the
   new length at the same time scale and refines it (:meth:`_Segmenter.extend`, a few Gauss–
   Newton steps of one candidate): a success is a match like any other; a failure moves the
   upper end but proves nothing. The search stops only when the prefix one step (≤ σ) longer
   fails both ways — the match stretched and the whole search (seeds from
   :mod:`._index_search`, refined) — so a prefix is never cut short because the match
-  followed so far left the path while another primitive goes on.
+  followed so far left the path while another primitive goes on. On a novel path this
+  leaves about two whole searches per segment (the first match, the final failure) where
+  the bisection ran about eleven.
 
 A probe "matches" when some candidate, refined continuously (:mod:`._refine`), has Kabsch
 RMSD below ε against the piece, compared at the path's own samples in the piece (cuts lie on
 samples; a piece is never shorter than 8 samples) and the primitive at the corresponding
 uniform times — the RMSD reported in the segment. The segment's primitive is then the
-lowest-RMSD one among the match and the search's seeds for the final prefix
-(:meth:`_Segmenter.best`).
+lowest-RMSD one among the match and the seeds of the whole search that failed one step
+further (:meth:`_Segmenter.best`; a new search when there was none).
 """
 
 from __future__ import annotations
