@@ -12,6 +12,10 @@ answer: the bundled lines are pieces of one another). Printed per noise level an
 queries answered, median and worst time per query, the index's time over the grid's (ratio)
 and the queries where the two disagree (:func:`compare`).
 
+With ``--deformed N``, N noise-free stored pieces per case bent by a smooth wiggle of RMS
+eps / 2 (1-3, 5-15 or 20-60 periods per piece; eps 1 % and 3 % of the extent): whole shapes
+within eps of one stored shape, which must come out as one segment, as from the grid.
+
 With ``--stored-noise``, the same queries against the library with white noise of the same
 level on every stored primitive (noise in a stored path must not change the answer either).
 
@@ -23,7 +27,7 @@ Goal (issue 13): >= 59 of 60 answered at each noise level, as the grid; index cu
 grid cuts.
 
 Run: ``python benchmarks/bench_match_noisy.py [--queries 60] [--joined 10] [--big]
-[--stored-noise]``.
+[--stored-noise] [--deformed 14]``.
 """
 
 from __future__ import annotations
@@ -127,6 +131,30 @@ def single_queries(bank: BankIndex, count: int, level: float, seed: int) -> list
         clean = _piece(bank, row, rng) + rng.uniform(-50, 50, size=bank.dim)
         noisy, eps = _noisy(clean, level, rng)
         out.append(Query(noisy, clean, eps, row, (0, clean.shape[0] - 1)))
+    return out
+
+
+def deformed_queries(bank: BankIndex, count: int, frac: float, seed: int, periods: int = 1,
+                     rms: float = 0.5) -> list[Query]:  # fmt: skip
+    """``count`` noise-free stored pieces bent by a smooth deformation (3 sinusoids of 1, 2
+    and 3 times ``periods`` periods per axis) of RMS ``rms`` × eps, eps = ``frac`` × the
+    piece's extent: whole shapes within eps of one stored shape, not composed of pieces
+    (issue 13: such a path must not be cut into pieces of others)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(count):
+        row = i % bank.k
+        clean = _piece(bank, row, rng)
+        eps = frac * float(np.ptp(clean, axis=0).max())
+        t = np.linspace(0.0, 1.0, clean.shape[0])[:, None, None]
+        f = periods * np.arange(1, 4)[None, :, None]
+        wave = (
+            rng.normal(size=(1, 3, bank.dim))
+            / f
+            * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi, (1, 3, bank.dim)))
+        ).sum(axis=1)
+        wave *= rms * eps / np.sqrt(np.mean(np.sum(wave**2, axis=1)))
+        out.append(Query(clean + wave, clean, eps, row, (0, clean.shape[0] - 1)))
     return out
 
 
@@ -244,12 +272,35 @@ def junction_table(bank: BankIndex, count: int) -> dict:
     return out
 
 
+def deformed_table(bank: BankIndex, count: int) -> dict:
+    """Noise-free stored pieces bent by a smooth wiggle of RMS eps / 2 (:func:`deformed_queries`):
+    one matched segment, per search, and the index against the grid (printed)."""
+    print("\n| eps / extent | wiggle periods | grid: one segment | index: one segment | "
+          "other cuts / worse / better primitive than the grid |")  # fmt: skip
+    print("|---|---|---|---|---|")
+    out = {}
+    for frac in (0.01, 0.03):
+        for periods in (1, 5, 20):
+            qs = deformed_queries(bank, count, frac, seed=40, periods=periods)
+            res = {s: [run(bank, q, s)[0] for q in qs] for s in ("grid", "index")}
+            one = {s: sum(len(r) == 1 and r[0].primitive is not None for r in res[s])
+                   for s in res}  # fmt: skip
+            cmp = [compare(a, b, len(q.points) - 1)
+                   for q, a, b in zip(qs, res["index"], res["grid"], strict=True)]  # fmt: skip
+            diff = " / ".join(str(cmp.count(c)) for c in ("cuts", "worse", "better"))
+            print(f"| {100 * frac:g} % | {periods}-{3 * periods} | {one['grid']}/{count} | "
+                  f"{one['index']}/{count} | {diff} |")  # fmt: skip
+            out[(frac, periods)] = one
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--queries", type=int, default=60, help="single pieces per noise level")
     ap.add_argument("--joined", type=int, default=10, help="3-piece paths per noise level")
     ap.add_argument("--big", action="store_true", help="also 1,000 random primitives")
     ap.add_argument("--stored-noise", action="store_true", help="also a noisy library")
+    ap.add_argument("--deformed", type=int, default=0, help="smoothly bent pieces per case")
     args = ap.parse_args()
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     kinds = ["bundled", "random-1000"] if args.big else ["bundled"]
@@ -262,6 +313,8 @@ def main() -> None:
             single_table(bank, args.queries, stored_noise=True)
         if args.joined:
             junction_table(bank, args.joined)
+        if args.deformed:
+            deformed_table(bank, args.deformed)
     print(f"\nload average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
