@@ -307,8 +307,9 @@ def main() -> None:
     for kind in kinds:
         bank = library(kind)
         print(f"\n{kind} library ({bank.k} primitives), eps = 2 x noise RMS")
-        single_table(bank, args.queries)
-        if args.stored_noise:
+        if args.queries:
+            single_table(bank, args.queries)
+        if args.queries and args.stored_noise:
             print("\nthe same queries against the library with noise of the same level")
             single_table(bank, args.queries, stored_noise=True)
         if args.joined:
