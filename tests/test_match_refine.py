@@ -174,3 +174,26 @@ def test_a_seed_is_given_up_only_when_its_geometric_tail_stays_above():
     assert not hopeless(np.array([4.0]), np.array([0.001]), np.array([0.01]), 3.4)[0]
     assert not hopeless(np.array([4.0]), np.array([0.3]), np.array([0.2]), 1.0)[0]
     assert not hopeless(np.array([4.0]), np.array([0.1]), np.array([0.0]), 1.0)[0]
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_a_fixed_duration_step_is_the_box_qp_s(seed):
+    """Time scale range of one value: the closed-form step along x1 - x0 = lo is the box QP's."""
+    from primlib.match._refine_many import _steps
+
+    rng = np.random.default_rng(seed)
+    m = 16
+    a = rng.normal(size=(m, 2, 2))
+    jtj = a @ a.transpose(0, 2, 1) + 0.1 * np.eye(2)
+    g = rng.normal(size=(m, 2)) * 30
+    lo = rng.uniform(5, 40, m)
+    z = np.c_[rng.uniform(0, 60, m), np.zeros(m)]
+    z[:, 1] = z[:, 0] + lo
+    c = np.c_[np.zeros(m), np.full(m, 100.0), -lo, lo]
+    lam = np.where(rng.random(m) < 0.5, 0.0, rng.uniform(1e-4, 10, m))
+    steps = _steps(jtj, g, lam, z, c)
+    dg = jtj[:, [0, 1], [0, 1]]
+    h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * np.eye(2)
+    one = np.array([solve_box_qp2(h[i], g[i], z[i], _AMAT, c[i]) for i in range(m)])
+    np.testing.assert_allclose(steps, one, rtol=1e-9, atol=1e-9)

@@ -161,7 +161,8 @@ def _free_step(h: np.ndarray, g: np.ndarray, det: np.ndarray) -> np.ndarray:
 
 def _steps(jtj, g, lam, z, cvec):
     """Damped Gauss–Newton steps under A z ≤ c: the free 2×2 solution where feasible, the
-    box QP of :func:`._refine.solve_box_qp2` elsewhere."""
+    box QP of :func:`._refine.solve_box_qp2` elsewhere (in closed form for a fixed
+    duration)."""
     dg = jtj[:, [0, 1], [0, 1]]
     h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * np.eye(2)
     det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
@@ -169,6 +170,16 @@ def _steps(jtj, g, lam, z, cvec):
     slack = cvec - z @ _AMAT.T
     ok = np.all(free @ _AMAT.T <= slack + 1e-9 * (1.0 + np.abs(cvec)), axis=1) & (det > 0)
     bad = np.flatnonzero(~ok)
+    # a fixed duration (time scale range of one value): the feasible set is the segment
+    # x1 − x0 = lo, so the QP is one-dimensional along (1, 1), its minimiser clipped
+    line = np.abs(cvec[bad, 2] + cvec[bad, 3]) <= 1e-12 * (1.0 + np.abs(cvec[bad, 3]))
+    if np.any(line):
+        on = bad[line]
+        nhn = h[on].sum(axis=(1, 2))
+        t = np.where(nhn > 0, g[on].sum(axis=1) / np.where(nhn > 0, nhn, 1.0), 0.0)
+        t = np.clip(t, -z[on, 0], cvec[on, 1] - z[on, 1])
+        free[on] = t[:, None]
+        bad = bad[~line]
     if bad.size:
         free[bad] = _box_qp_many(h[bad], g[bad], slack[bad], 1e-9 * (1.0 + np.abs(cvec[bad])))
     return free
