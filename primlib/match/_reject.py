@@ -47,12 +47,20 @@ class Envelope:
         hi = np.maximum.reduceat(points, starts, axis=0)
         rows = np.repeat(np.arange(len(starts)), np.diff(offsets))
         centre = 0.5 * (lo + hi)
-        dev = points - centre[rows]
         margin = _OVERSHOOT * max_step
-        # squared norms by einsum: np.linalg.norm over a short axis is ~5x slower
-        far = np.sqrt(np.maximum.reduceat(np.einsum("ij,ij->i", dev, dev), starts))
-        if points.shape[1] == 3:
-            sq_xy = np.einsum("ij,ij->i", dev[:, :2], dev[:, :2])
+        # squared distances from the centre in chunks (no (N, d) temporaries), by einsum
+        # (np.linalg.norm over a short axis is ~5x slower)
+        sq = np.empty(points.shape[0])
+        sq_xy = np.empty(points.shape[0]) if points.shape[1] == 3 else None
+        for c0 in range(0, points.shape[0], 1 << 16):
+            c1 = min(c0 + (1 << 16), points.shape[0])
+            dev = points[c0:c1] - centre[rows[c0:c1]]
+            sq_xy_c = np.einsum("ij,ij->i", dev[:, :2], dev[:, :2])
+            sq[c0:c1] = sq_xy_c + (np.einsum("ij,ij->i", dev[:, 2:], dev[:, 2:]))
+            if sq_xy is not None:
+                sq_xy[c0:c1] = sq_xy_c
+        far = np.sqrt(np.maximum.reduceat(sq, starts))
+        if sq_xy is not None:
             far_xy = np.sqrt(np.maximum.reduceat(sq_xy, starts)) + margin
         else:
             far_xy = np.zeros(len(starts))
