@@ -255,3 +255,22 @@ def test_a_match_found_on_a_worse_primitive_is_replaced_by_the_best():
     first_hit = _Found(Candidate(0, 0.0, 299.0, 0.0), 0.6 * eps, False)
     out = seg.segment(0.0, 1.0, first_hit)
     assert out.primitive == 1 and out.rmsd < 1e-3 * eps
+
+
+def test_splits_follow_a_power_law_through_the_bracket():
+    """The split where r = c·L^p through both ends reaches eps, strictly inside the bracket;
+    through the failure alone (p = 2) when the match's RMSD is unknown; the midpoint when
+    the failure's is."""
+    from primlib.match._segment import _gallop, _split
+
+    r = lambda n: 1e-4 * n**2  # noqa: E731 - reaches eps = 1 at 100 samples
+    assert _split(50, 200, r(50), r(200), 1.0) == 100
+    assert _split(50, 200, r(50), r(200) ** 1.5, 1.0) < 100  # a steeper law: sooner
+    assert _split(50, 200, float("nan"), r(200), 1.0) == 100
+    assert _split(50, 200, r(50), float("inf"), 1.0) == 125
+    assert _split(99, 101, 0.1, 50.0, 1.0) == 100  # never on an end
+    assert _split(99, 101, 0.999, 1.001, 1.0) == 100
+    # the gallop: to where r ~ L^2 reaches eps, +10 %, between 1/8 and 2x longer
+    assert _gallop(100, r(50), 1.0) == 200
+    assert _gallop(100, 0.64, 1.0) == 138  # 100 * 1.1 / 0.8 = 137.5
+    assert _gallop(100, 0.999, 1.0) == 113
