@@ -87,7 +87,7 @@ def worker(spec: dict) -> dict:
     t0 = time.perf_counter()
     segs, info = segment_path(
         BankIndex(bank), pts, dt, eps,
-        progress=lambda done, total, found: cuts.append((time.perf_counter() - t0, done)),
+        progress=lambda done, total, *found: cuts.append((time.perf_counter() - t0, done)),
     )  # fmt: skip
     seconds = time.perf_counter() - t0
     return {

@@ -16,16 +16,17 @@ Reports, each beside its baseline measured in the same run:
 * first-call and warm match time against library size 10 / 100 / 1,000.
 
 * the persisted index: reading the 1,000 primitives' index and envelopes back from a
-  DuckDB file against building them (``_index_persist.py``); rebuilding wins, so the index
-  is not kept in the library file (the row says by how much).
+  DuckDB file against building them (``_index_persist.py``); reading is no cheaper (0.725 s
+  against 0.729 s in one run at load 6), so the index is not kept in the library file.
 
 Run: ``python benchmarks/bench_match.py`` (single-threaded BLAS; ``--full-grid`` also runs
 the time grid on 1,000 primitives, about ten minutes; ``--restricted`` instead times the
 restricted searches — ``rotation="none"``, time scale 1-1 — against the default on the
 bundled library and ``data/paths/glyph-chain.csv``, the per-axis bound beside the
-rotation-invariant one; ``--length 2400 24000 100000`` instead times composed and novel
-paths of those lengths against the bundled library, each in its own process with its peak
-memory, the ratios to the first length beside the goals — ``_length_scaling.py``;
+rotation-invariant one; ``--length 2400 24000 100000 [--baseline REV]`` instead times
+composed and novel paths of those lengths against the bundled library, each in its own
+process with its peak memory, the ratios to the first length beside the goals, and with
+``--baseline`` the same paths matched by revision REV's primlib — ``_length_scaling.py``;
 ``--index`` only the index row, on 1,000 random primitives).
 """
 
@@ -38,6 +39,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import statistics  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -171,29 +173,36 @@ def restricted(machine: Machine) -> None:
     lib.close()
 
 
-def length_scaling(lengths: list[int], library: str = "bundled", timeout: float = 1800.0):
+def length_scaling(lengths: list[int], library: str = "bundled", timeout: float = 1800.0,
+                   baseline: Path | None = None):  # fmt: skip
     """``--length``: composed and novel paths of each length (``_length_scaling.py``), one
-    process each; time and peak memory, and each kind's ratio to its first length."""
+    process each; time and peak memory, each kind's ratio to its first length, and (with
+    ``baseline``, a tree holding another revision's ``primlib``) the same run there."""
     print(f"\nmatch time and peak memory against path length ({library} library; first call, "
           "one process per path: peak RSS includes the interpreter and numpy)")  # fmt: skip
     print("| path | samples | time | segments | matched | peak RSS | time / first length "
-          "| samples / first length | goal |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| samples / first length | goal | baseline time, peak | ratio |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     rows = []
     for kind in ("composed", "novel"):
         first = None
         for n in lengths:
-            r = run_length({"kind": kind, "samples": n, "library": library}, timeout=timeout)
-            rows.append((kind, n, r))
+            spec = {"kind": kind, "samples": n, "library": library}
+            r = run_length(spec, timeout=timeout)
+            old = run_length(spec, tree=baseline, timeout=timeout) if baseline else None
+            rows.append((kind, n, r, old))
             if "timeout" in r:
-                print(f"| {kind} | {n:,} | > {timeout:.0f} s (stopped) | - | - | - | - | - | - |")
+                print(f"| {kind} | {n:,} | > {timeout:.0f} s (stopped) |" + " - |" * 8)
                 continue
             first = first or (n, r["seconds"])
             ratio, grow = r["seconds"] / first[1], n / first[0]
             goal = _length_goal(n, grow, ratio, r)
+            base = (f"> {timeout:.0f} s | -" if "timeout" in old else
+                    f"{old['seconds']:.1f} s, {old['peak_mb']:.0f} MB | "
+                    f"{old['seconds'] / r['seconds']:.1f}x") if old else "- | -"  # fmt: skip
             print(f"| {kind} | {n:,} | {r['seconds']:.1f} s | {r['segments']} | "
                   f"{100 * r['matched']:.0f} % | {r['peak_mb']:.0f} MB | x{ratio:.1f} | "
-                  f"x{grow:.1f} | {goal} |")  # fmt: skip
+                  f"x{grow:.1f} | {goal} | {base} |")  # fmt: skip
     return rows
 
 
@@ -237,6 +246,11 @@ def main() -> None:
         help="only the path-length study: composed and novel paths of these lengths",
     )
     ap.add_argument(
+        "--baseline",
+        metavar="REV",
+        help="with --length: also run each path with git revision REV's primlib",
+    )
+    ap.add_argument(
         "--index",
         action="store_true",
         help="only the index row: read back from DuckDB against rebuilt, 1,000 primitives",
@@ -252,7 +266,16 @@ def main() -> None:
         restricted(machine)
         return
     if args.length:
-        length_scaling(args.length)
+        with tempfile.TemporaryDirectory(prefix="bench_length_") as folder:
+            base = None
+            if args.baseline:
+                tar = subprocess.run(["git", "-C", str(ROOT), "archive", args.baseline, "primlib"],
+                                     capture_output=True, check=True).stdout  # fmt: skip
+                subprocess.run(["tar", "-x", "-C", folder], input=tar, check=True)
+                base = Path(folder)
+            length_scaling(args.length, baseline=base)
+        if args.baseline:
+            print(f"baseline: git revision {args.baseline}")
         return
     print(f"machine {machine.name}: dt {machine.dt} s; eps {EPS}; pieces {len(PIECES)}")
 
