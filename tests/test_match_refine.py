@@ -82,7 +82,7 @@ def test_clamp_keeps_the_duration_in_range_and_inside_the_primitive():
 @pytest.mark.parametrize("rotation", ["full", "z", "none"])
 def test_refining_seeds_together_takes_each_seeds_own_steps(rotation):
     from primlib.match._interp import cubic_at
-    from primlib.match._refine_many import refine_many, rmsd_many
+    from primlib.match._refine_many import refine_many
 
     bank = _bank()
     rng = np.random.default_rng(4)
@@ -106,9 +106,6 @@ def test_refining_seeds_together_takes_each_seeds_own_steps(rotation):
         # the RMSD it returns is the one at its own (64) points
         at64 = [piece_rmsd(bank, c, path, 0.0, 1.0, 64, rotation).rmsd for c in together]
         np.testing.assert_allclose(r64, at64, rtol=1e-9, atol=1e-12)
-    r = rmsd_many(bank, together, path, 0.0, 1.0, 151, rotation)
-    single = [piece_rmsd(bank, c, path, 0.0, 1.0, 151, rotation).rmsd for c in together]
-    np.testing.assert_allclose(r, single, rtol=1e-9, atol=1e-12)
 
 
 @settings(max_examples=30, deadline=None)

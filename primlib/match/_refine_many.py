@@ -14,27 +14,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from primlib.match._interp import cubic_at
-from primlib.match._kabsch import _rotation_2d, kabsch
+from primlib.match._kabsch import _rotation_2d
 from primlib.match._options import Candidate, PathPiece, SearchOptions
 from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, clamp, duration_range, hopeless
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
 
-__all__ = ["refine_many", "rmsd_many"]
-
-
-def rmsd_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
-              k: int, rotation: str) -> np.ndarray:  # fmt: skip
-    """Kabsch RMSD of each candidate against the path piece [a, b], all at k uniform times
-    (what :func:`._refine.piece_rmsd` gives for each), shape (m,)."""
-    if not cands:
-        return np.zeros(0)
-    prim = np.array([c.prim for c in cands])
-    x = np.linspace([c.x0 for c in cands], [c.x1 for c in cands], k, axis=1)
-    p = _gather(bank, prim, x)
-    q = path.at(np.linspace(a, b, k))
-    return kabsch(p, np.broadcast_to(q, p.shape), rotation=rotation).rmsd
+__all__ = ["refine_many"]
 
 
 def _gather(bank: BankIndex, prim: np.ndarray, x: np.ndarray, derivative: bool = False):
@@ -116,8 +103,8 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
     than ``rtol`` of its cost has converged.
 
     Returns the refined candidates and their Kabsch RMSD at the ``points`` uniform times
-    (default ``opts.refine_points``) the refinement ran on, what :func:`rmsd_many` gives
-    there (inf for a primitive too short for the time-scale range: left as it came).
+    (default ``opts.refine_points``) the refinement ran on, what :func:`._refine.piece_rmsd`
+    gives there (inf for a primitive too short for the time-scale range: left as it came).
     """
     dur = (b - a) * path.duration
     out, rmsd = list(cands), np.full(len(cands), np.inf)
