@@ -15,7 +15,7 @@ from test_match_segment import DT, _library
 from primlib.match import BankIndex, segment_path
 from primlib.match._index_search import IndexSearch
 from primlib.match._options import PathPiece, SearchOptions
-from primlib.match._smooth import gaussian_smooth, noise_sigma, smooth_bank, smooth_path
+from primlib.match._smooth import gaussian_smooth, noise_sigma, smooth_bank, smooth_path, wiggly
 from primlib.store import Bank
 
 
@@ -207,3 +207,30 @@ def test_a_long_noisy_line_is_smoothed_in_bounded_time():
     assert sm.width == pytest.approx((n - 1) / 4.0)
     # closer to the line than the samples (0.087 RMS); the ends pivot on noisy end samples
     assert _rms(sm.path.points, line) < 0.5 * _rms(q, line)
+
+
+@pytest.mark.parametrize("periods", [60, 100])
+def test_a_smooth_wiggle_is_wiggly_and_a_smooth_curve_is_not(periods):
+    # chords of 16 samples across a wiggle of 8-13 samples miss most of its arc; a smooth
+    # curve (3 harmonics on 800 samples) turns by < 0.2 rad over a chord: < 0.2 % shorter
+    clean = _curve(800, 3)
+    t = np.linspace(0.0, 1.0, 800)[:, None]
+    wig = np.hstack([np.sin(2 * np.pi * periods * t), np.cos(2 * np.pi * periods * t), 0 * t])
+    assert not wiggly(clean, 0.0, 1.0) and not wiggly(clean, 0.2, 0.5)
+    assert wiggly(clean + 0.4 * wig, 0.0, 1.0) and wiggly(clean + 0.4 * wig, 0.2, 0.5)
+    assert not wiggly(clean + 0.4 * wig, 0.2, 0.25)  # too short for 4 chords: not judged
+
+
+def test_a_wiggly_copy_of_a_stored_piece_is_one_segment_as_from_the_grid():
+    # a stored piece bent by a smooth wiggle of RMS 0.5 eps, 80 periods: the raw arc is
+    # 1.2x the stored one's; the index measures it on the path smoothed within eps
+    bank = _library(6, 1201, seed=4)
+    q = bank.points_of(3)[100:1100].copy()
+    t = np.linspace(0.0, 1.0, len(q))[:, None]
+    wig = np.hstack([np.sin(160 * np.pi * t), np.cos(160 * np.pi * t), 0 * t])
+    eps = 0.02 * float(np.ptp(q, axis=0).max())
+    q += 0.5 * eps * wig
+    assert _arc(q) > 1.2 * _arc(bank.points_of(3)[100:1100])
+    segs, _ = segment_path(bank, q, DT, eps)
+    grid, _ = reference_segment_path(bank, q, DT, eps, "grid")
+    assert [s.primitive for s in segs] == [s.primitive for s in grid] == [103]

@@ -61,7 +61,7 @@ from primlib.match._grid import GridSearch
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import CandidatePool, best_and_ties, suppress
-from primlib.match._smooth import Smoothed, smooth_path
+from primlib.match._smooth import Smoothed, smooth_path, smooth_to, wiggly
 
 __all__ = ["IndexSearch", "ArcQuery"]
 
@@ -124,15 +124,18 @@ class IndexSearch:
 
     def __post_init__(self) -> None:
         self._grid = GridSearch(self.bank, self.opts, self.stats)
-        self._smoothed: tuple[PathPiece, float, Smoothed] | None = None
+        self._smoothed: list = [None, None, None, None]
 
-    def smoothed(self, path: PathPiece, eps: float) -> Smoothed:
+    def smoothed(self, path: PathPiece, eps: float, wide: bool = False) -> Smoothed:
         """The path as the index sees it (:mod:`._smooth`), kept for the path and eps of
-        the last call (one segmentation asks for the same path many times)."""
+        the last call (one segmentation asks for the same path many times); ``wide``: the
+        copy within eps, for wiggly pieces."""
         hit = self._smoothed
-        if hit is None or hit[0] is not path or hit[1] != eps:
-            hit = self._smoothed = (path, eps, smooth_path(path, eps))
-        return hit[2]
+        if hit[0] is not path or hit[1] != eps:
+            hit[:] = [path, eps, smooth_path(path, eps), None]
+        if wide and hit[3] is None:
+            hit[3] = smooth_to(path, eps)
+        return hit[3] if wide else hit[2]
 
     def _index_for(self, ell: float) -> ArcIndex:
         """The index, or a finer one for pieces short in arc length (~16 arc samples)."""
@@ -153,6 +156,8 @@ class IndexSearch:
         smoothing = 0.0
         if eps is not None:
             sm = self.smoothed(path, eps)
+            if wiggly(sm.path.points, a, b):
+                sm = self.smoothed(path, eps, wide=True)
             path, smoothing = sm.path, sm.deviation(a, b)
         n_dense = max(64, int(round((b - a) * (path.n - 1))) * 2 + 1)
         dense = path.at(np.linspace(a, b, n_dense))

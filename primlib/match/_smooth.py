@@ -13,7 +13,12 @@ length. The index therefore measures arc length on a smoothed copy S of the samp
   RMS deviation from Q is at most the target δ* = min(1.1·σ̂·√d, eps) — the discrepancy
   principle: remove what looks like noise, no more (the factor 1.1 because the RMS residual
   only approaches the noise RMS as w grows), never more than eps;
-* w below half a sample smooths nothing: S is then Q itself.
+* w below half a sample smooths nothing: S is then Q itself;
+* a smooth wiggle of a few eps with a period of tens of samples (a hand-drawn path near a
+  stored shape) the noise estimate barely sees: a piece whose arc on S is more than 3 %
+  longer than along chords of 16 samples (:func:`wiggly`; a smooth curve turning by θ
+  over a chord is only θ²/24 longer) is measured on Q smoothed to the target eps instead
+  (:func:`smooth_to`). A clean smooth path is never wiggly and is measured as it is.
 
 Every piece [a, b] knows its own RMS deviation δ (:meth:`Smoothed.deviation`, over the path
 samples in it, ≤ δ* over the whole path). For any rigid motion (R, t),
@@ -38,6 +43,8 @@ _MAD = 0.6745  # median |N(0, 1)|
 _SLACK = 1.1  # target residual over the estimated noise RMS
 _MIN_WIDTH = 0.5  # samples: a narrower Gaussian changes nothing worth the bookkeeping
 _BISECTIONS = 12
+_CHORD = 16  # samples per chord of :func:`wiggly`
+ARC_RTOL = 0.03  # a piece whose arc chords shorten by more is wiggly
 _FFT_TAPS = 129  # wider kernels go through the FFT
 
 
@@ -117,6 +124,22 @@ class Smoothed:
         return math.sqrt(max(self.cum[i1 + 1] - self.cum[i0], 0.0) / (i1 + 1 - i0))
 
 
+def wiggly(points: np.ndarray, a: float, b: float) -> bool:
+    """Whether the piece [a, b] of ``points`` is more than ``ARC_RTOL`` longer along its
+    samples than along chords of ``_CHORD`` samples: wiggles shorter than a chord make its
+    arc (a smooth curve turning by θ over a chord is only 1 − θ²/24 longer than it)."""
+    n = points.shape[0]
+    i0 = min(max(int(math.floor(a * (n - 1) + 1e-9)), 0), n - 1)
+    i1 = min(max(int(math.ceil(b * (n - 1) - 1e-9)), i0), n - 1)
+    if i1 - i0 < 4 * _CHORD:
+        return False
+    p = points[i0 : i1 + 1]
+    fine = float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1)))
+    idx = np.append(np.arange(0, i1 - i0, _CHORD), i1 - i0)
+    coarse = float(np.sum(np.linalg.norm(np.diff(p[idx], axis=0), axis=1)))
+    return coarse < (1.0 - ARC_RTOL) * fine
+
+
 def _rms(a: np.ndarray, b: np.ndarray) -> float:
     return math.sqrt(float(np.mean(np.sum((a - b) ** 2, axis=1))))
 
@@ -136,7 +159,13 @@ def smooth_path(path: PathPiece, eps: float) -> Smoothed:
     """
     q = path.points
     n, d = q.shape
-    target = min(_SLACK * noise_sigma(q) * math.sqrt(d), eps)
+    return smooth_to(path, min(_SLACK * noise_sigma(q) * math.sqrt(d), eps))
+
+
+def smooth_to(path: PathPiece, target: float) -> Smoothed:
+    """``path`` filtered by the widest Gaussian within ``target`` RMS of its samples."""
+    q = path.points
+    n = q.shape[0]
     width = _width(q, target)
     if width == 0.0:
         return Smoothed(path, 0.0, 0.0, np.zeros(n + 1))
