@@ -387,6 +387,38 @@ class TrialLearner:
         phi = self.learned_fraction(est, self.cutoff(est))
         return float(np.sqrt(est.repeatable_rms**2 + est.floor**2 * phi / m_eff))
 
+    def _remaining_last(self, u: np.ndarray, y: np.ndarray, est: NoiseEstimate) -> float:
+        # the update that made the last input averaged the window of the trials before it
+        return self.remaining(est, self.window(u[:-1], y[:-1]) if u.shape[0] > 1 else 1)
+
+    def input_error(self, inputs, outputs) -> float | None:
+        """The true (noise-free) RMS error the last input run leaves, estimated from the
+        trials: :meth:`remaining` (what the stop rule compares with the floor), the noise
+        estimated from at least the last two trials; None for one trial (it cannot tell
+        its error from its noise).
+
+        It is what a stored signal is worth where it ran: the library keeps it as the
+        primitive's ``error_rms`` (:func:`primlib.trials.finish`), so a warm start can weigh
+        the stored signal against a model (noise ILC learned into the input shows here, not
+        in the measured error alone).
+
+        Parameters
+        ----------
+        inputs, outputs : array, shape (k, n, d)
+
+        Returns
+        -------
+        float or None
+        """
+        u, y = self._check_history(inputs, outputs)
+        if u.shape[0] < 2:
+            return None
+        # at least the last two trials, moved to the last input with the model, even where
+        # the update's window took one (a large last move): a worth needs a noise estimate
+        m = max(self.window(u, y), 2)
+        est = estimate_noise(self._h, self.reference, u[-m:], y[-m:])
+        return self._remaining_last(u, y, est)
+
     def assess(self, inputs, outputs) -> tuple[NoiseEstimate | None, bool, bool]:
         """(noise estimate, converged, diverging) after the last recorded trial.
 
@@ -401,8 +433,7 @@ class TrialLearner:
         floor = None if est is None else est.floor
         converged = False
         if est is not None and est.trials >= _MIN_VERDICT:
-            before = self.window(u[:-1], y[:-1])
-            converged = self.remaining(est, before) <= self.margin * est.floor
+            converged = self._remaining_last(u, y, est) <= self.margin * est.floor
         diverging = False
         if len(rms) >= 3:
             step = self.margin * floor if floor is not None else _GROWTH * rms[-3]
