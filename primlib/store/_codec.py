@@ -29,7 +29,7 @@ __all__ = [
     "in_id_order",
 ]
 
-INFO_COLUMNS = "id, name, machine, duration, dt, n_samples, dim, source, added, origin"
+INFO_COLUMNS = "id, name, machine, duration, dt, n_samples, dim, source, added, origin, error_rms"
 INSERT_COLUMNS = [
     "id",
     "machine",
@@ -48,6 +48,7 @@ INSERT_COLUMNS = [
     "signal",
     "content_hash",
     "origin",
+    "error_rms",
 ]
 
 
@@ -85,7 +86,7 @@ def offsets_of(counts: np.ndarray) -> np.ndarray:
 
 def info_from_row(row: Sequence[Any]) -> PrimitiveInfo:
     """A :class:`PrimitiveInfo` from one row of :data:`INFO_COLUMNS`."""
-    id_, name, machine, duration, dt, n, dim, source, added, origin = row
+    id_, name, machine, duration, dt, n, dim, source, added, origin, error_rms = row
     return PrimitiveInfo(
         id=int(id_),
         name=name,
@@ -97,6 +98,7 @@ def info_from_row(row: Sequence[Any]) -> PrimitiveInfo:
         source=source,
         added=added.replace(tzinfo=UTC),
         origin=None if origin is None else tuple(float(x) for x in origin),
+        error_rms=None if error_rms is None else float(error_rms),
     )
 
 
@@ -148,6 +150,7 @@ def batch_table(
                 [None if c["origin"] is None else c["origin"].tolist() for c in checked],
                 pa.list_(pa.float64()),
             ),
+            "error_rms": pa.array([c["error_rms"] for c in checked], pa.float64()),
         }
     )
 
@@ -185,7 +188,7 @@ def bank_from_table(
     load_signals: Callable[[np.ndarray], np.ndarray],
 ) -> Bank:
     """A read-only :class:`Bank` from the columns id, name, duration, n_samples, degree,
-    knots, ctrlpts, weights, points, origin of one machine's rows (any order).
+    knots, ctrlpts, weights, points, origin, error_rms of one machine's rows (any order).
 
     ``load_signals(ids)`` reads the signals of these ids, in this order, on first use.
     """
@@ -209,6 +212,7 @@ def bank_from_table(
         weights=flat(table.column("weights")),
         ctrl_offsets=offsets_of(weights_arr.value_lengths().to_numpy(zero_copy_only=False)),
         origins=_origins(table.column("origin").to_pylist(), d),
+        errors=table.column("error_rms").to_numpy(zero_copy_only=False).astype(float),
         load_signals=lambda: load_signals(ids),
     )
     for value in vars(bank).values():

@@ -7,7 +7,7 @@ its own transaction together with the bump of ``meta.schema_version`` and a row 
 and leaves the file at the previous version. Steps are SQL text or a callable taking the
 connection. Never edit a released step: append a new one.
 
-Layout (version 5):
+Layout (version 6):
 
 ``meta(key, value)``
     ``application = primlib`` marks a primlib library; ``schema_version``.
@@ -28,6 +28,10 @@ ctrlpts, weights, points, signal)``
     unless asked to. ``origin`` (version 5, nullable ``DOUBLE[]``, one coordinate per axis)
     is the absolute machine position the primitive's path started from when its signal
     was learned (where it ran); NULL where unknown, as for every row stored before.
+    ``error_rms`` (version 6, nullable ``DOUBLE``) is the RMS tracking error (Euclidean over
+    the axes, output units) the stored signal is estimated to leave there without the
+    measurement noise (:meth:`primlib.ilc.TrialLearner.input_error`): what the signal is
+    worth, noise that ILC learned into it included; NULL where unknown.
 ``series(id, machine, name, created, state, start, options, notes, duration, dt, dim,
 n_samples, degree, knots, ctrlpts, weights, points, origin, steps, primitive, finished)``
     A trial series on a real stage (:mod:`primlib.store._trials`): the path (NURBS and
@@ -192,6 +196,11 @@ MIGRATIONS: list[Migration] = [
         5,
         "primitives: origin, the absolute start position where the primitive ran",
         "ALTER TABLE primitives ADD COLUMN origin DOUBLE[]",
+    ),
+    (
+        6,
+        "primitives: error_rms, the tracking error the stored signal leaves where it ran",
+        "ALTER TABLE primitives ADD COLUMN error_rms DOUBLE",
     ),
 ]
 

@@ -266,6 +266,7 @@ class Store:
         name: str | None = None,
         source: str | None = None,
         origin: Any = None,
+        error_rms: float | None = None,
     ) -> int:
         """Store one primitive: a path and the input learned for it on ``machine``.
 
@@ -283,6 +284,10 @@ class Store:
         origin : array, shape (d,), optional
             Where it ran: the absolute machine position the path started from when ``u``
             was learned (finite, one coordinate per axis). None: unknown.
+        error_rms : float, optional
+            The RMS tracking error (Euclidean over axes, output units) ``u`` is estimated to
+            leave there without the measurement noise (finite, >= 0;
+            :meth:`primlib.ilc.TrialLearner.input_error`). None: unknown.
 
         Returns
         -------
@@ -297,9 +302,11 @@ class Store:
         InputError
             Wrong dimension, dt or shape; NaN, inf or a value beyond
             ``primlib.defaults.MAX_ABS_VALUE``; a path that does not move; a bad name; an
-            origin without one finite coordinate per axis. Nothing is written.
+            origin without one finite coordinate per axis; an error_rms that is not a
+            finite number >= 0. Nothing is written.
         """
-        return self.add_batch([(path, u, name, source, origin)], machine, single=True).ids[0]
+        item = (path, u, name, source, origin, error_rms)
+        return self.add_batch([item], machine, single=True).ids[0]
 
     def add_many(self, items: Sequence[Sequence[Any]], machine: str) -> list[int]:
         """Store many primitives in ONE transaction: all of them, or (on any error) none.
@@ -309,9 +316,10 @@ class Store:
 
         Parameters
         ----------
-        items : sequence of (Trajectory, u, name, source, origin)
-            ``u`` array, shape (n_i, d); ``name``, ``source`` and ``origin`` (the absolute
-            start position, shape (d,), as in :meth:`add`) may be None or left off.
+        items : sequence of (Trajectory, u, name, source, origin, error_rms)
+            ``u`` array, shape (n_i, d); ``name``, ``source``, ``origin`` (the absolute
+            start position, shape (d,)) and ``error_rms``, as in :meth:`add`, may be None or
+            left off.
         machine : str
             Name of a machine in the library.
 
@@ -342,7 +350,7 @@ class Store:
 
         Parameters
         ----------
-        items : sequence of (Trajectory, u, name, source, origin)
+        items : sequence of (Trajectory, u, name, source, origin, error_rms)
         machine : str
         allow_duplicates : bool, default False
             Store items identical to stored primitives (or to each other) anyway.
@@ -510,7 +518,7 @@ class Store:
             self._db()
             .sql(
                 "SELECT id, name, duration, n_samples, degree, knots, ctrlpts, weights, "
-                "points, origin FROM primitives WHERE machine = $m",
+                "points, origin, error_rms FROM primitives WHERE machine = $m",
                 params={"m": machine},
             )
             .to_arrow_table()

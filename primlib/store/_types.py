@@ -41,6 +41,9 @@ class PrimitiveInfo:
     origin : tuple of float or None
         The absolute machine position the path started from when its signal was learned
         (where it ran), one coordinate per axis; None where unknown.
+    error_rms : float or None
+        The RMS tracking error (Euclidean over axes, output units) the signal is estimated
+        to leave where it ran, without the measurement noise; None where unknown.
     """
 
     id: int
@@ -53,6 +56,7 @@ class PrimitiveInfo:
     source: str | None
     added: datetime
     origin: tuple[float, ...] | None = field(default=None, kw_only=True)
+    error_rms: float | None = field(default=None, kw_only=True)
 
     def __post_init__(self) -> None:
         if self.origin is not None:  # a JSON list (primlib.client) becomes a tuple
@@ -71,6 +75,7 @@ class PrimitiveInfo:
             "source": self.source,
             "added": self.added.isoformat(),
             "origin": None if self.origin is None else list(self.origin),
+            "error_rms": self.error_rms,
         }
 
 
@@ -135,6 +140,9 @@ class Bank:
     origins : array, shape (k, d)
         Each primitive's absolute start position where it ran (its ``origin``), NaN where
         unknown.
+    errors : array, shape (k,)
+        Each primitive's ``error_rms`` (the tracking error its signal leaves where it ran),
+        NaN where unknown.
     """
 
     machine: str
@@ -152,6 +160,7 @@ class Bank:
     weights: np.ndarray
     ctrl_offsets: np.ndarray
     origins: np.ndarray = field(default=None, kw_only=True)  # type: ignore[assignment]
+    errors: np.ndarray = field(default=None, kw_only=True)  # type: ignore[assignment]
     load_signals: Callable[[], np.ndarray] | None = field(default=None, repr=False)
     _signals: list[np.ndarray] = field(default_factory=list, repr=False)
 
@@ -206,6 +215,8 @@ class Bank:
     def __post_init__(self) -> None:
         if self.origins is None:  # a bank built elsewhere knows no origins
             object.__setattr__(self, "origins", np.full((len(self.ids), self.dim), np.nan))
+        if self.errors is None:  # nor what its signals are worth
+            object.__setattr__(self, "errors", np.full(len(self.ids), np.nan))
 
     @property
     def signals(self) -> np.ndarray:

@@ -20,6 +20,7 @@ __all__ = [
     "check_id",
     "check_name",
     "check_item",
+    "check_error_rms",
     "check_origin",
     "sample_points",
     "check_points",
@@ -121,18 +122,38 @@ def check_origin(label: str, origin: Any, axes: Sequence[str]) -> np.ndarray | N
     return arr
 
 
+def check_error_rms(label: str, value: Any) -> float | None:
+    """None, or a stored signal's error_rms as a float: finite, >= 0, within
+    +-MAX_ABS_VALUE; else an InputError naming ``label``."""
+    if value is None:
+        return None
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        msg = f"{label}: expected error_rms as a number >= 0, got {value!r:.60}"
+        raise InputError(msg) from None
+    _check_values(label, "error_rms", np.array([out]))
+    if out < 0:
+        raise InputError(f"{label}: expected error_rms >= 0, got {out!r}")
+    return out
+
+
 def check_item(i: int | None, item: Any, machine: str, dt: float, axes: list[str]) -> dict:
-    """Check one (path, u, name, source, origin) item; return what the insert needs.
+    """Check one (path, u, name, source, origin, error_rms) item; return what the insert
+    needs.
 
     Returns
     -------
     dict
         ``n``, ``u`` (n, d), ``path``, ``label``, ``name``, ``source``, ``origin`` ((d,)
-        or None), ``duration``, ``degree``, ``knots``, ``ctrlpts`` (m, d), ``weights``.
+        or None), ``error_rms`` (float or None), ``duration``, ``degree``, ``knots``,
+        ``ctrlpts`` (m, d), ``weights``.
     """
     d = len(axes)
-    if isinstance(item, (str, bytes)) or not isinstance(item, Sequence) or not 2 <= len(item) <= 5:
-        raise InputError(f"item {i}: expected (path, u, name, source, origin), got {item!r:.60}")
+    if isinstance(item, (str, bytes)) or not isinstance(item, Sequence) or not 2 <= len(item) <= 6:
+        raise InputError(
+            f"item {i}: expected (path, u, name, source, origin, error_rms), got {item!r:.60}"
+        )
     path, u = item[0], item[1]
     name = item[2] if len(item) > 2 else None
     source = item[3] if len(item) > 3 else None
@@ -140,6 +161,7 @@ def check_item(i: int | None, item: Any, machine: str, dt: float, axes: list[str
     check_name(label, "name", name)
     check_name(label, "source", source)
     origin = check_origin(label, item[4] if len(item) > 4 else None, axes)
+    error_rms = check_error_rms(label, item[5] if len(item) > 5 else None)
     if not all(hasattr(path, a) for a in ("definition", "sample", "duration", "dim")):
         raise InputError(f"{label}: expected a Trajectory, got {type(path).__name__}")
     n = _grid(label, path, machine, dt, axes)
@@ -171,6 +193,7 @@ def check_item(i: int | None, item: Any, machine: str, dt: float, axes: list[str
         "name": name,
         "source": source,
         "origin": origin,
+        "error_rms": error_rms,
         "duration": float(path.duration),
         "degree": int(definition["degree"]),
         "knots": knots,

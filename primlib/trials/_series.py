@@ -113,6 +113,10 @@ class SeriesStatus:
     converged, diverging : bool
     verdict : str
         ``"converged"``, ``"diverging"``, ``"learning"``, ``"finished"`` or ``"started"``.
+    input_error : float or None
+        The true (noise-free) RMS tracking error the last measured trial's input is
+        estimated to leave (:meth:`primlib.ilc.TrialLearner.input_error`); None before two
+        trials are averaged. :func:`finish` stores it as the primitive's ``error_rms``.
     """
 
     record: Any
@@ -121,6 +125,7 @@ class SeriesStatus:
     converged: bool
     diverging: bool
     verdict: str
+    input_error: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays)."""
@@ -137,6 +142,7 @@ class SeriesStatus:
             "primitive": r.primitive,
             "verdict": self.verdict,
             "noise_floor": self.noise_floor,
+            "input_error": self.input_error,
             "trials": [
                 {
                     "trial": t.trial,
@@ -397,20 +403,22 @@ def status(lib, series: int) -> SeriesStatus:
     rec = store.series(series)
     trials = store.trials(series)
     done = [t for t in trials if not t.pending]
-    floor, converged, diverging = None, False, False
+    floor, converged, diverging, worth = None, False, False, None
     if done:
         ref = rec.points - rec.origin
         lrn = learner(lib.machine(rec.machine), ref, rec.options)
         outputs = np.stack([t.measured for t in done]) - rec.origin
-        est, converged, diverging = lrn.assess(np.stack([t.input for t in done]), outputs)
+        inputs = np.stack([t.input for t in done])
+        est, converged, diverging = lrn.assess(inputs, outputs)
         floor = None if est is None else est.floor
+        worth = lrn.input_error(inputs, outputs)
     if rec.state == "finished":
         verdict = "finished"
     elif not done:
         verdict = "started"
     else:
         verdict = "converged" if converged else "diverging" if diverging else "learning"
-    return SeriesStatus(rec, trials, floor, converged, diverging, verdict)
+    return SeriesStatus(rec, trials, floor, converged, diverging, verdict, worth)
 
 
 def _source(rec, trial, floor: float | None) -> str:
@@ -426,7 +434,9 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
     """Store a series' converged input as a primitive and close the series.
 
     The pair stored is the last measured trial's input with the path, and the series'
-    ``origin`` (the absolute start position) as the primitive's ``origin``; its ``source``
+    ``origin`` (the absolute start position) as the primitive's ``origin``, and the true
+    error that input is estimated to leave (``SeriesStatus.input_error``) as its
+    ``error_rms``; its ``source``
     names the series, its number of trials, final error, noise floor and that position
     (all of which the series row keeps too).
 
@@ -475,6 +485,7 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
             name=name or rec.name or f"series-{rec.id}",
             source=source,
             origin=rec.origin,  # where it ran: the position the stage started each trial
+            error_rms=st.input_error,  # what its input is worth there, noise learned included
         )
     _store(lib).mark_finished(series, pid)
     return int(pid)
