@@ -91,6 +91,10 @@ class GreyBox:
         The same for the linear model's inverse alone (no terms).
     n_samples : int
     notes : tuple of str
+    cv_pairs : array, shape (k, d) or None
+        Per pair given to :func:`fit_greybox` (in that order) and axis, the RMS of the
+        cross-validated output error over that pair's samples; NaN for a pair the fit left
+        out (beyond its row budget).
     """
 
     machine: Machine
@@ -102,6 +106,7 @@ class GreyBox:
     rms_nominal: np.ndarray
     n_samples: int
     notes: tuple[str, ...] = field(default_factory=tuple)
+    cv_pairs: np.ndarray | None = None
 
     def terms(
         self, y: np.ndarray, origin: Any = None, u_lin: np.ndarray | None = None
@@ -176,13 +181,18 @@ def _solve(F: np.ndarray, r: np.ndarray, cols: list[int]) -> np.ndarray:
     return coef
 
 
-def _cv(F: np.ndarray, r: np.ndarray, cols: list[int], folds: np.ndarray) -> float:
+def _cv(F: np.ndarray, r: np.ndarray, cols: list[int], folds: np.ndarray) -> np.ndarray:
+    """Each row's error when its fold is held out of the fit, shape (n,)."""
     err = np.empty_like(r)
     for k in np.unique(folds):
         test = folds == k
         c = _solve(F[~test], r[~test], cols)
         err[test] = r[test] - F[test] @ c
-    return float(np.sqrt(np.mean(err**2)))
+    return err
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2)))
 
 
 def _with_ripple(F: np.ndarray, pos: np.ndarray, w: float) -> np.ndarray:
@@ -245,8 +255,8 @@ def _through_model(X: np.ndarray, starts: np.ndarray, b: np.ndarray, a: np.ndarr
     return out
 
 
-def _axis_fit(row: dict, linear: bool = True) -> tuple[np.ndarray, float, float, float, float]:
-    """(coef, w, cv, cv_linear, rms_nominal) of one axis, errors in output units.
+def _axis_fit(row: dict, linear: bool = True):
+    """(coef, w, cv error per row, cv_linear, rms_nominal) of one axis, output units.
 
     The fit is on output error: residual and regressors are run through the axis's model
     (from rest, per pair), so least squares weighs an input error by the tracking error it
@@ -258,21 +268,21 @@ def _axis_fit(row: dict, linear: bool = True) -> tuple[np.ndarray, float, float,
     """
     F, r, folds, starts, (b, a) = row["F"], row["r"], row["folds"], row["starts"], row["tf"]
     Fo, ro = _through_model(F, starts, b, a), _through_model(r, starts, b, a)
-    rms0 = float(np.sqrt(np.mean(ro**2)))
-    cv_lin = _cv(Fo, ro, _LIN, folds) if linear else rms0
-    cols, best = [], rms0
-    if linear and cv_lin < _GAIN * best:
-        cols, best = list(_LIN), cv_lin
-    cv_nl = _cv(Fo, ro, cols + _FRICTION, folds)
-    if cv_nl < _GAIN * best:
-        cols, best = cols + _FRICTION, cv_nl
+    rms0 = _rms(ro)
+    err_lin = _cv(Fo, ro, _LIN, folds) if linear else ro
+    cols, best = [], ro
+    if linear and _rms(err_lin) < _GAIN * _rms(best):
+        cols, best = list(_LIN), err_lin
+    err_nl = _cv(Fo, ro, cols + _FRICTION, folds)
+    if _rms(err_nl) < _GAIN * _rms(best):
+        cols, best = cols + _FRICTION, err_nl
     w = _ripple_search(F, r, row["pos"], row["step"])
     if w > 0:
-        cv_r = _cv_ripple(row, Fo, ro, cols)
-        if cv_r < _GAIN * best:
+        err_r = _cv_ripple(row, Fo, ro, cols)
+        if _rms(err_r) < _GAIN * _rms(best):
             Go = _ripple_columns(row, Fo, w)
-            return _solve(Go, ro, cols + [6, 7]), w, cv_r, cv_lin, rms0
-    return _solve(Fo, ro, cols), 0.0, best, cv_lin, rms0
+            return _solve(Go, ro, cols + [6, 7]), w, err_r, _rms(err_lin), rms0
+    return _solve(Fo, ro, cols), 0.0, best, _rms(err_lin), rms0
 
 
 def _ripple_columns(row: dict, Fo: np.ndarray, w: float) -> np.ndarray:
@@ -282,7 +292,7 @@ def _ripple_columns(row: dict, Fo: np.ndarray, w: float) -> np.ndarray:
     return np.concatenate([Fo[:, :6], G], axis=1)
 
 
-def _cv_ripple(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int]) -> float:
+def _cv_ripple(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int]) -> np.ndarray:
     """Cross-validated error with a ripple whose frequency each fold searches on its own
     training rows: a frequency chosen on all the data would fit structure in the held-out
     rows too (with few primitives, residual structure in time looks like a short pitch)."""
@@ -295,7 +305,7 @@ def _cv_ripple(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int]) -> fl
         G, use = (Fo, cols) if w <= 0 else (_ripple_columns(row, Fo, w), cols + [6, 7])
         c = _solve(G[train], ro[train], use)
         err[test] = ro[test] - G[test] @ c
-    return float(np.sqrt(np.mean(err**2)))
+    return err
 
 
 def _stack(machine: Machine, pairs: Sequence[Pair]):
@@ -348,13 +358,13 @@ def _checked_pairs(machine: Machine, pairs: Sequence[Pair]) -> list[Pair]:
     return out
 
 
-def _thin(pairs: list[Pair]) -> list[Pair]:
+def _thin(pairs: list[Pair]) -> np.ndarray:
+    """Which pairs the fit uses: all, or evenly spread ones up to ``_MAX_ROWS`` rows."""
     total = sum(p.u.shape[0] for p in pairs)
     if total <= _MAX_ROWS:
-        return pairs
+        return np.arange(len(pairs))
     keep = max(1, int(len(pairs) * _MAX_ROWS / total))
-    idx = np.unique(np.linspace(0, len(pairs) - 1, keep).round().astype(int))
-    return [pairs[i] for i in idx]
+    return np.unique(np.linspace(0, len(pairs) - 1, keep).round().astype(int))
 
 
 def fit_greybox(machine: Machine, pairs: Sequence[Pair], *, linear: bool = True) -> GreyBox:
@@ -390,16 +400,23 @@ def fit_greybox(machine: Machine, pairs: Sequence[Pair], *, linear: bool = True)
     """
     if not pairs:
         raise InputError("grey-box fit: expected at least one stored pair, got none")
-    pairs = _thin(_checked_pairs(machine, pairs))
+    given = _checked_pairs(machine, pairs)
+    used = _thin(given)
+    pairs = [given[i] for i in used]
     speed, rows = _stack(machine, pairs)
     d = machine.dim
     coef = np.zeros((d, len(TERMS)))
     w, cv, cv_lin, rms0 = np.zeros(d), np.zeros(d), np.zeros(d), np.zeros(d)
+    per_pair = np.full((len(given), d), np.nan)
+    starts = np.concatenate([[0], np.cumsum([p.u.shape[0] for p in pairs])])
     notes = []
     for i, row in enumerate(rows):
         if speed[i] <= 0:
             notes.append(f"axis {machine.axes[i]} did not move in the stored pairs: no terms")
+            per_pair[used, i] = 0.0
             continue
-        coef[i], w[i], cv[i], cv_lin[i], rms0[i] = _axis_fit(row, linear)
+        coef[i], w[i], err, cv_lin[i], rms0[i] = _axis_fit(row, linear)
+        cv[i] = _rms(err)
+        per_pair[used, i] = np.sqrt(np.add.reduceat(err**2, starts[:-1]) / np.diff(starts))
     n = sum(p.u.shape[0] for p in pairs)
-    return GreyBox(machine, coef, w, speed, cv, cv_lin, rms0, n, tuple(notes))
+    return GreyBox(machine, coef, w, speed, cv, cv_lin, rms0, n, tuple(notes), per_pair)
