@@ -121,7 +121,7 @@ def run_series(true, learner, origin, u0, trials: int, first_trial: int, stop: b
         if stop and step.converged:
             break
         u = step.u
-    return np.array(errors), inputs
+    return np.array(errors), inputs, outputs
 
 
 def learn_library(
@@ -136,13 +136,17 @@ def learn_library(
         ref = traj.sample(nominal.dt)
         ref = ref - ref[0]
         learner = TrialLearner(nominal, ref)
-        errors, inputs = run_series(
+        errors, inputs, outputs = run_series(
             true, learner, origin, invert(nominal, ref), trials, 0, stop=True
         )
         # the input of the last trial run, at the learner's stop rule (the noise floor) or
-        # after ``trials``: what a finished series stores
-        lib.add(traj, inputs[-1], "xyz", name=stem, origin=origin)
-        placed.append({"stem": stem, "points": pts, "origin": origin, "final": errors[-1]})
+        # after ``trials``, and the error the learner estimates it leaves: what a finished
+        # series stores (primlib.trials.finish)
+        worth = learner.input_error(np.stack(inputs), np.stack(outputs))
+        lib.add(traj, inputs[-1], "xyz", name=stem, origin=origin, error_rms=worth)
+        placed.append(
+            {"stem": stem, "points": pts, "origin": origin, "final": errors[-1], "worth": worth}
+        )
     return placed
 
 
@@ -211,7 +215,8 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
                         "choices": list(ws.choices),
                     }
                 )
-    return {"setting": name, "library_s": t_lib, "rows": rows}
+    known = [(p["final"], p["worth"]) for p in placed if p["worth"] is not None]
+    return {"setting": name, "library_s": t_lib, "rows": rows, "stored_error": known}
 
 
 def _trials_to(errors: np.ndarray, target: float) -> float:
@@ -278,6 +283,12 @@ def main(argv: list[str] | None = None) -> dict:
         res = run_setting(name, nominal, args, args.seed)
         lines, bad = summarise(res)
         print(f"{name} (library learned in {res['library_s']:.1f} s)")
+        if res["stored_error"]:
+            ratio = [w / max(f, 1e-12) for f, w in res["stored_error"]]
+            print(
+                f"  stored signals' recorded error_rms / their true error: median "
+                f"{statistics.median(ratio):.2f}, range {min(ratio):.2f}-{max(ratio):.2f}"
+            )
         print("\n".join(lines), flush=True)
         results.append(res)
         fails += bad

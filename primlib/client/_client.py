@@ -127,6 +127,7 @@ def warm_start_from_dict(d: dict[str, Any], path: Any = None) -> Any:
         model_u=None if d.get("model_u") is None else np.asarray(d["model_u"], dtype=float),
         choices=tuple(d.get("choices", ())),
         predicted=tuple(float(p) for p in d.get("predicted", ())),
+        weights=tuple(float(w) for w in d.get("weights", ())),
     )
 
 

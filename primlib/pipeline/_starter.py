@@ -23,7 +23,12 @@ from primlib._errors import NoMatchError
 from primlib.greybox import GreyBox, fit_greybox
 from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
-from primlib.pipeline._greywarm import bank_pairs, choose_per_segment, linear_parts
+from primlib.pipeline._greywarm import (
+    _transformed,
+    bank_pairs,
+    choose_per_segment,
+    linear_parts,
+)
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
 from primlib.plant import Machine
@@ -273,7 +278,7 @@ class WarmStarter:
         )
         if gb is None:
             return _warm_start_result(res, m, match, model)
-        return _grey_result(res, m, match, model, gb, pts - pts[0], origin)
+        return _grey_result(res, m, match, model, gb, bank, pts - pts[0], origin)
 
     def _models(self, m: Machine, bank: Bank, ids, refine: bool, greybox: bool):
         """(refined model or None, grey-box model or None, the stored signals to splice).
@@ -369,15 +374,18 @@ class WarmStarter:
         return LearnRun(m, ref, t, ws, res, crms, tuple(notes))
 
 
-def _grey_result(res, m, match, model, gb, ref, origin) -> WarmStart:
+def _grey_result(res, m, match, model, gb, bank, ref, origin) -> WarmStart:
     """The WarmStart with the grey-box model: nonlinear terms added, chosen per segment."""
     u_lin, lin, non = gb.terms(ref, origin)
     model_u = u_lin + lin + non
-    u, choices, predicted = choose_per_segment(
-        gb, res.segments, res.sample_segment, res.u + non, model_u
+    u, choices, predicted, shares = choose_per_segment(
+        gb, bank, res.segments, res.sample_segment, res.u + non, model_u
     )
     base = _warm_start_result(res, m, match, model)
-    used = [_choice_text(c, p) for c, p in zip(choices, predicted, strict=True)]
+    used = [
+        _choice_text(c, p, w, seg)
+        for c, p, w, seg in zip(choices, predicted, shares, res.segments, strict=True)
+    ]
     notes = (*base.notes, f"grey-box model of the machine: {gb.describe()}")
     return replace(
         base,
@@ -386,20 +394,36 @@ def _grey_result(res, m, match, model, gb, ref, origin) -> WarmStart:
         model_u=model_u,
         greybox=gb,
         choices=choices,
-        predicted=tuple(min(p) for p in predicted),
+        predicted=tuple(_mixed(p, w) for p, w in zip(predicted, shares, strict=True)),
+        weights=shares,
         sources=tuple(f"{s}; {c}" for s, c in zip(base.sources, used, strict=True)),
     )
 
 
-def _choice_text(choice: str, predicted: tuple[float, float]) -> str:
+def _mixed(predicted: tuple[float, float], share: float) -> float:
+    """The predicted error of a segment's input: of the one kept, or of the mix of two
+    independent errors, sqrt(w^2 s^2 + (1 - w)^2 m^2)."""
+    stored, model = predicted
+    if share == 0.0:
+        return model
+    if share == 1.0:
+        return stored
+    return float(np.hypot(share * stored, (1.0 - share) * model))
+
+
+def _choice_text(choice: str, predicted: tuple[float, float], share: float, seg) -> str:
     """Why a segment uses what it uses, in one clause."""
     stored, model = predicted
     if not np.isfinite(stored):
         return f"model-only input (nothing stored matched; predicted output error {model:.3g})"
-    what = "stored signal carried over" if choice == "stored" else "model-only input"
+    what = {
+        "stored": "stored signal carried over",
+        "model": "model-only input",
+        "blend": f"{share:.2f} stored signal + {1 - share:.2f} model-only input",
+    }[choice]
     return (
         f"{what} (predicted output error: stored {stored:.3g}, model-only {model:.3g}; "
-        f"{'in place or translated' if stored == 0 else 'rotated or time-scaled'})"
+        f"{'rotated or time-scaled' if _transformed(seg) else 'in place or translated'})"
     )
 
 

@@ -59,10 +59,15 @@ class WarmStart:
     greybox : GreyBox or None
         The machine's grey-box model, fitted to all of its stored pairs.
     choices : tuple of str
-        Per segment "stored" (the stored signal carried over) or "model" (the model-only
-        input), empty without the grey-box model.
+        Per segment "stored" (the stored signal carried over), "model" (the model-only
+        input) or "blend" (their least-error mix, in place or translated, where both have
+        an error of their own: noise learned into the stored signal, what the model
+        misses); empty without the grey-box model.
     predicted : tuple of float
-        Per segment the predicted RMS input error of the choice (input units).
+        Per segment the predicted RMS tracking error (Euclidean over the axes, output
+        units) of the input used.
+    weights : tuple of float
+        Per segment the stored signal's share of the input (1 stored, 0 model).
     """
 
     u: np.ndarray
@@ -79,6 +84,7 @@ class WarmStart:
     greybox: Any = None
     choices: tuple[str, ...] = field(default_factory=tuple)
     predicted: tuple[float, ...] = field(default_factory=tuple)
+    weights: tuple[float, ...] = field(default_factory=tuple)
 
     @property
     def n_unmatched(self) -> int:
@@ -96,6 +102,7 @@ class WarmStart:
             "notes": list(self.notes),
             "choices": list(self.choices),
             "predicted": [float(p) for p in self.predicted],
+            "weights": [float(w) for w in self.weights],
             "match": self.match.to_dict(),
         }
 
