@@ -14,8 +14,9 @@ The library is learned ON that machine, as a real one would be: each of the 14 e
 primitives (scripts/build_example_library.py) runs at its own place on the table, trial after
 trial with the machine's noise and disturbance, under primlib's noise-aware trial learner
 (:class:`primlib.ilc.TrialLearner`, norm-optimal on the nominal model) until its stop rule
-says it reached the noise floor (at most 30 trials), and the last input run is stored with
-where it ran. New paths, of three kinds:
+says it reached the noise floor (at most 30 trials), and the input of the trial with the
+lowest measured error is stored with where it ran and what it is worth (the learner's
+estimate of the true error it leaves). New paths, of three kinds:
 
 - (i) in place: a primitive run again where it was learned (a repeated fixture);
 - (ii) translated: a primitive run 20-80 mm away (other ripple phase, same motion);
@@ -139,13 +140,15 @@ def learn_library(
         errors, inputs, outputs = run_series(
             true, learner, origin, invert(nominal, ref), trials, 0, stop=True
         )
-        # the input of the last trial run, at the learner's stop rule (the noise floor) or
-        # after ``trials``, and the error the learner estimates it leaves: what a finished
-        # series stores (primlib.trials.finish)
-        worth = learner.input_error(np.stack(inputs), np.stack(outputs))
-        lib.add(traj, inputs[-1], "xyz", name=stem, origin=origin, error_rms=worth)
+        # what a finished series stores (primlib.trials.finish): the input of the trial with
+        # the lowest measured error, run until the learner's stop rule (the noise floor) or
+        # ``trials``, and the error the learner estimates it leaves
+        measured = [rms(ref - y) for y in outputs]
+        best = int(np.argmin(measured))
+        worth = learner.input_error(np.stack(inputs[: best + 1]), np.stack(outputs[: best + 1]))
+        lib.add(traj, inputs[best], "xyz", name=stem, origin=origin, error_rms=worth)
         placed.append(
-            {"stem": stem, "points": pts, "origin": origin, "final": errors[-1], "worth": worth}
+            {"stem": stem, "points": pts, "origin": origin, "final": errors[best], "worth": worth}
         )
     return placed
 

@@ -31,7 +31,7 @@ def test_a_tiny_run_measures_every_start_on_every_kind():
         # cold does not move an integrating machine: its error is the path's own size
         assert first["cold"] > 10 * first["nominal"] > 0
         assert row["floor"] >= bench_realism.FLOOR_MIN
-        assert set(row["choices"]) <= {"stored", "model"}
+        assert set(row["choices"]) <= {"stored", "model", "blend"}
     # in place, the library's own signal is what the machine needed there
     in_place = res["rows"]["in place"][0]["first"]
     assert in_place["warm"] < in_place["nominal"] / 10

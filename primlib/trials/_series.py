@@ -421,22 +421,42 @@ def status(lib, series: int) -> SeriesStatus:
     return SeriesStatus(rec, trials, floor, converged, diverging, verdict, worth)
 
 
-def _source(rec, trial, floor: float | None) -> str:
+def _source(rec, done, best: int, floor: float | None) -> str:
     where = ", ".join(f"{v:.6g}" for v in rec.origin)
     floor_s = "unknown" if floor is None else f"{floor:.6g}"
+    trial = done[best]
+    which = "final" if best == len(done) - 1 else f"trial {trial.trial + 1}'s (the best)"
     return (
-        f"trial series {rec.id}: {trial.trial + 1} trials on machine {rec.machine!r}, final "
+        f"trial series {rec.id}: {len(done)} trials on machine {rec.machine!r}, {which} "
         f"rms {trial.rms:.6g}, noise floor {floor_s}, started at ({where})"
     )
+
+
+def best_trial(lib, rec, done) -> tuple[int, float | None]:
+    """(index in ``done``, its input's error_rms): the measured trial with the lowest RMS
+    error, and the true error its input is estimated to leave, from the trials up to it.
+
+    A law designed on a model can pass through its best input and then slowly diverge
+    (an unmodelled resonance grows trial after trial above the model's band): the library
+    keeps the best input the series ran, not the last. On a noisy stage the measured RMS
+    of every trial carries the same noise, so the lowest still points at the best input.
+    """
+    best = int(np.argmin([t.rms for t in done]))
+    if best < 1:
+        return best, None
+    lrn = learner(lib.machine(rec.machine), rec.points - rec.origin, rec.options)
+    inputs = np.stack([t.input for t in done[: best + 1]])
+    outputs = np.stack([t.measured for t in done[: best + 1]]) - rec.origin
+    return best, lrn.input_error(inputs, outputs)
 
 
 def finish(lib, series: int, *, name: str | None = None, force: bool = False) -> int:
     """Store a series' converged input as a primitive and close the series.
 
-    The pair stored is the last measured trial's input with the path, and the series'
+    The pair stored is the input of the measured trial with the lowest RMS error
+    (:func:`best_trial`; the last one while the errors fall) with the path, the series'
     ``origin`` (the absolute start position) as the primitive's ``origin``, and the true
-    error that input is estimated to leave (``SeriesStatus.input_error``) as its
-    ``error_rms``; its ``source``
+    error that input is estimated to leave as its ``error_rms``; its ``source``
     names the series, its number of trials, final error, noise floor and that position
     (all of which the series row keeps too).
 
@@ -472,7 +492,8 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
             f"trial series {series} has not converged ({st.verdict}, last rms "
             f"{done[-1].rms:.6g}, noise floor {st.noise_floor}); run more trials, or force it"
         )
-    source = _source(rec, done[-1], st.noise_floor)
+    best, worth = best_trial(lib, rec, done)
+    source = _source(rec, done, best, st.noise_floor)
     # a finish interrupted between its two transactions left the primitive: reuse it
     prefix = f"trial series {rec.id}:"
     stored = [p.id for p in lib.primitives(rec.machine) if (p.source or "").startswith(prefix)]
@@ -480,12 +501,12 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
     if pid is None:
         pid = lib.add(
             rec.trajectory,
-            done[-1].input,
+            done[best].input,
             machine=rec.machine,
             name=name or rec.name or f"series-{rec.id}",
             source=source,
             origin=rec.origin,  # where it ran: the position the stage started each trial
-            error_rms=st.input_error,  # what its input is worth there, noise learned included
+            error_rms=worth,  # what its input is worth there, noise learned included
         )
     _store(lib).mark_finished(series, pid)
     return int(pid)
