@@ -9,9 +9,11 @@ import hashlib
 import duckdb
 import numpy as np
 import pytest
+from click.testing import CliRunner
 from stage_helpers import ROOT, STAGE, loop, nominal, stage_pair
 
 from primlib import InputError
+from primlib.cli import main
 from primlib.ilc import TrialLearner
 from primlib.nurbs import Trajectory
 from primlib.pipeline import Library
@@ -41,6 +43,8 @@ def test_error_rms_round_trips_and_old_files_migrate_to_unknown(tmp_path):
         a = s.add(*item(0), machine="xyz", error_rms=0.0125)
         b = s.add(*item(1), machine="xyz")
         (c,) = s.add_many([(*item(2), "c", None, None, 3e-4)], "xyz")
+    shown = CliRunner().invoke(main, ["--db", str(db), "show", str(a)]).output
+    assert "error      0.0125 (RMS tracking error its signal leaves where it ran" in shown
     with Store(db, read_only=True) as s:
         assert [s.info(i).error_rms for i in (a, b, c)] == [0.0125, None, 3e-4]
         assert s.get(a).error_rms == 0.0125 and s.info(b).to_dict()["error_rms"] is None

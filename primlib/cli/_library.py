@@ -273,6 +273,8 @@ def show(
         f"{'rational' if traj.rational else 'non-rational'}, extent {traj.extent:.6g}",
         f"  path       from {fmt(start)} to {fmt(end)}",
         f"  origin     {'unknown' if p.origin is None else fmt(p.origin)} (where it ran)",
+        f"  error      {'unknown' if p.error_rms is None else f'{p.error_rms:.4g}'} (RMS "
+        "tracking error its signal leaves where it ran, noise aside)",
         "  signal     "
         + ", ".join(
             f"{a}: rms {r:.4g}, peak {k:.4g}" for a, r, k in zip(axes, rms, peak, strict=True)
