@@ -73,9 +73,11 @@ def test_a_version_2_library_migrates_and_its_primitives_get_their_hash(tmp_path
         points, signal = s.get(pid).points, s.get(pid).signal
     con = duckdb.connect(str(db))
     con.execute("ALTER TABLE primitives DROP COLUMN content_hash")
-    # and what later migrations made (the trial series, migration 4; the origin, 5)
+    # and what later migrations made (the trial series, migration 4; the origin, 5; the
+    # error_rms, 6)
     con.execute("DROP TABLE trials; DROP TABLE series; DROP SEQUENCE series_ids")
     con.execute("ALTER TABLE primitives DROP COLUMN origin")
+    con.execute("ALTER TABLE primitives DROP COLUMN error_rms")
     con.execute("DELETE FROM migrations WHERE version > 2")
     con.execute("UPDATE meta SET value = '2' WHERE key = 'schema_version'")
     con.close()
