@@ -108,6 +108,12 @@ def test_refining_seeds_together_takes_each_seeds_own_steps(rotation):
         np.testing.assert_allclose(r64, at64, rtol=1e-9, atol=1e-12)
 
 
+def _quadratics(rng, m: int):
+    """m random 2x2 positive definite matrices and gradients: step problems of a refinement."""
+    a = rng.normal(size=(m, 2, 2))
+    return a @ a.transpose(0, 2, 1) + 0.1 * np.eye(2), rng.normal(size=(m, 2)) * 30
+
+
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_box_qp_of_many_problems_matches_the_single_solver(seed):
@@ -115,9 +121,7 @@ def test_box_qp_of_many_problems_matches_the_single_solver(seed):
 
     rng = np.random.default_rng(seed)
     m = 16
-    a = rng.normal(size=(m, 2, 2))
-    h = a @ a.transpose(0, 2, 1) + 0.1 * np.eye(2)
-    g = rng.normal(size=(m, 2)) * 30
+    h, g = _quadratics(rng, m)
     z = np.c_[rng.uniform(0, 50, m), np.zeros(m)]
     z[:, 1] = z[:, 0] + rng.uniform(5, 20, m)
     lo = rng.uniform(1, 5, m)
@@ -181,9 +185,7 @@ def test_a_fixed_duration_step_is_the_box_qp_s(seed):
 
     rng = np.random.default_rng(seed)
     m = 16
-    a = rng.normal(size=(m, 2, 2))
-    jtj = a @ a.transpose(0, 2, 1) + 0.1 * np.eye(2)
-    g = rng.normal(size=(m, 2)) * 30
+    jtj, g = _quadratics(rng, m)
     lo = rng.uniform(5, 40, m)
     z = np.c_[rng.uniform(0, 60, m), np.zeros(m)]
     z[:, 1] = z[:, 0] + lo
