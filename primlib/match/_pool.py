@@ -66,10 +66,19 @@ class CandidatePool:
         self.tie_width = tie_width
         self.items: list[Candidate] = []
         self.threshold = gate
+        self._offered: list[Candidate] = []
 
     def offer(self, cands: list[Candidate]) -> None:
-        """Add scored windows (each below the gate) and update :attr:`threshold`."""
-        pool = suppress(self.items + list(cands), self.cap)
+        """Add scored windows (each below the gate) and update :attr:`threshold`.
+
+        The suppression runs on every window offered so far, not on the pool kept so far:
+        greedy suppression is not transitive (a window dropped for overlapping a kept one
+        comes back when a better newcomer suppresses that one), so only the whole set gives
+        what offering every window at once gives. The search offers at most ``cap`` windows
+        per chunk of thousands, so the set stays small.
+        """
+        self._offered.extend(cands)
+        pool = suppress(self._offered, self.cap)
         tie = pool[0].score + self.tie_width if pool else math.inf
         pool = [c for i, c in enumerate(pool) if i < self.n_best or c.score < tie]
         tau = self.gate
