@@ -425,7 +425,7 @@ def _source(rec, done, best: int, floor: float | None) -> str:
     where = ", ".join(f"{v:.6g}" for v in rec.origin)
     floor_s = "unknown" if floor is None else f"{floor:.6g}"
     trial = done[best]
-    which = "final" if best == len(done) - 1 else f"trial {trial.trial + 1}'s (the best)"
+    which = "final" if best == len(done) - 1 else f"trial {trial.trial}'s (the best)"
     return (
         f"trial series {rec.id}: {len(done)} trials on machine {rec.machine!r}, {which} "
         f"rms {trial.rms:.6g}, noise floor {floor_s}, started at ({where})"
