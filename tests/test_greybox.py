@@ -106,8 +106,28 @@ def test_an_axis_that_did_not_move_gets_no_terms():
         ([], "at least one stored pair"),
         ([Pair(np.zeros((10, 2)), np.zeros((10, 3)))], "same shape"),
         ([Pair(np.full((10, 2), np.nan), np.zeros((10, 2)))], "finite"),
+        ([Pair(np.zeros((10, 2)), np.zeros((10, 2)), (1.0,))], r"pair 0: origin: expected 2"),
+        ([Pair(np.zeros((10, 2)), np.zeros((10, 2)), (1.0, np.inf))], "finite coordinates"),
     ],
 )
 def test_refusals(pairs, needle):
     with pytest.raises(InputError, match=needle):
         fit_greybox(_nominal(), pairs)
+
+
+def test_a_malformed_origin_is_refused_not_ignored(stage_fit):
+    # a ripple evaluated at a wrong place is silently wrong: the place must be right or absent
+    gb, pairs = stage_fit
+    y = pairs[0].y
+    assert gb.terms(y, None)[2].shape == y.shape
+    for bad in ((1.0,), (1.0, np.nan), "here"):
+        with pytest.raises(InputError, match="origin: expected 2 finite coordinates"):
+            gb.terms(y, bad)
+
+
+def test_describe_says_which_fits_were_compared(stage_fit):
+    gb, pairs = stage_fit
+    assert "linear terms only" in gb.describe()  # beside the nominal model
+    beside_refined = fit_greybox(_nominal(), pairs, linear=False)
+    assert "linear terms only" not in beside_refined.describe()
+    assert "no terms" in beside_refined.describe()

@@ -143,21 +143,29 @@ class GreyBox:
             c = dict(zip(TERMS, self.coef[i], strict=True))
             ripple = np.hypot(c["ripple_sin"], c["ripple_cos"])
             pitch = f"{2 * np.pi / self.w[i]:.4g}" if self.w[i] > 0 else "-"
+            # without linear terms (beside a refined model) there is no "linear only" fit
+            fitted = self.cv_rms_linear[i] != self.rms_nominal[i]
+            linear = f"linear terms only {self.cv_rms_linear[i]:.3g}, " if fitted else ""
             lines.append(
                 f"{axis}: Coulomb {c['coulomb']:.3g}, Stribeck {c['stribeck']:.3g}, "
                 f"bias {c['bias']:.3g}, ripple {ripple:.3g} (pitch {pitch}), "
-                f"CV output error {self.cv_rms[i]:.3g} (linear terms only "
-                f"{self.cv_rms_linear[i]:.3g}, no terms {self.rms_nominal[i]:.3g})"
+                f"CV output error {self.cv_rms[i]:.3g} ({linear}no terms "
+                f"{self.rms_nominal[i]:.3g})"
             )
         return "; ".join(lines)
 
 
-def _origin(origin: Any, d: int) -> np.ndarray | None:
+def _origin(origin: Any, d: int, label: str = "origin") -> np.ndarray | None:
+    """None, or the absolute start as (d,) floats; an InputError for anything else (a
+    position-dependent term evaluated at a wrong place would be silently wrong)."""
     if origin is None:
         return None
-    o = np.asarray(origin, dtype=float).reshape(-1)
-    if o.shape != (d,) or not np.all(np.isfinite(o)):
-        return None
+    try:
+        o = np.asarray(origin, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        o = None
+    if o is None or o.shape != (d,) or not np.all(np.isfinite(o)):
+        raise InputError(f"{label}: expected {d} finite coordinates, got {origin!r:.60}")
     return o
 
 
@@ -354,7 +362,7 @@ def _checked_pairs(machine: Machine, pairs: Sequence[Pair]) -> list[Pair]:
             )
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             raise InputError(f"grey-box pair {k}: expected finite values, got NaN or inf")
-        out.append(Pair(u, y, _origin(p.origin, machine.dim)))
+        out.append(Pair(u, y, _origin(p.origin, machine.dim, f"grey-box pair {k}: origin")))
     return out
 
 
