@@ -143,9 +143,7 @@ def learn_library(
         # what a finished series stores (primlib.trials.finish): the input of the trial with
         # the lowest measured error, run until the learner's stop rule (the noise floor) or
         # ``trials``, and the error the learner estimates it leaves
-        measured = [rms(ref - y) for y in outputs]
-        best = int(np.argmin(measured))
-        worth = learner.input_error(np.stack(inputs[: best + 1]), np.stack(outputs[: best + 1]))
+        best, worth = learner.best_input(np.stack(inputs), np.stack(outputs))
         lib.add(traj, inputs[best], "xyz", name=stem, origin=origin, error_rms=worth)
         placed.append(
             {"stem": stem, "points": pts, "origin": origin, "final": errors[best], "worth": worth}

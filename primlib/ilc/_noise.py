@@ -419,6 +419,32 @@ class TrialLearner:
         est = estimate_noise(self._h, self.reference, u[-m:], y[-m:])
         return self._remaining_last(u, y, est)
 
+    def best_input(self, inputs, outputs) -> tuple[int, float | None]:
+        """(index, error): the trial whose measured RMS error is the lowest, and the true
+        error its input is estimated to leave (:meth:`input_error` on the trials up to it).
+
+        A law designed on a model can pass through its best input and then slowly diverge
+        (an unmodelled resonance grows trial after trial above the model's band): a library
+        keeps the best input a series ran, not the last (:func:`primlib.trials.finish`). On
+        a noisy stage every trial's measured RMS carries the same noise, so the lowest
+        still points at the best input.
+
+        Parameters
+        ----------
+        inputs, outputs : array, shape (k, n, d)
+
+        Returns
+        -------
+        (int, float or None)
+        """
+        u, y = self._check_history(inputs, outputs)
+        best = int(np.argmin(self._measured_rms(y)))
+        return best, self.input_error(u[: best + 1], y[: best + 1])
+
+    def _measured_rms(self, y: np.ndarray) -> np.ndarray:
+        """Each trial's measured RMS tracking error (Euclidean over the axes), shape (k,)."""
+        return np.sqrt(np.mean(np.sum((self.reference[None] - y) ** 2, axis=2), axis=1))
+
     def assess(self, inputs, outputs) -> tuple[NoiseEstimate | None, bool, bool]:
         """(noise estimate, converged, diverging) after the last recorded trial.
 
@@ -429,7 +455,7 @@ class TrialLearner:
         """
         u, y = self._check_history(inputs, outputs)
         est = self.noise(u, y)
-        rms = np.sqrt(np.mean(np.sum((self.reference[None] - y) ** 2, axis=2), axis=1))
+        rms = self._measured_rms(y)
         floor = None if est is None else est.floor
         converged = False
         if est is not None and est.trials >= _MIN_VERDICT:

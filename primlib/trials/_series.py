@@ -115,8 +115,9 @@ class SeriesStatus:
         ``"converged"``, ``"diverging"``, ``"learning"``, ``"finished"`` or ``"started"``.
     input_error : float or None
         The true (noise-free) RMS tracking error the last measured trial's input is
-        estimated to leave (:meth:`primlib.ilc.TrialLearner.input_error`); None before two
-        trials are averaged. :func:`finish` stores it as the primitive's ``error_rms``.
+        estimated to leave (:meth:`primlib.ilc.TrialLearner.input_error`); None for a single
+        measured trial. :func:`finish` stores the best trial's
+        (:meth:`primlib.ilc.TrialLearner.best_input`) as the primitive's ``error_rms``.
     """
 
     record: Any
@@ -405,10 +406,7 @@ def status(lib, series: int) -> SeriesStatus:
     done = [t for t in trials if not t.pending]
     floor, converged, diverging, worth = None, False, False, None
     if done:
-        ref = rec.points - rec.origin
-        lrn = learner(lib.machine(rec.machine), ref, rec.options)
-        outputs = np.stack([t.measured for t in done]) - rec.origin
-        inputs = np.stack([t.input for t in done])
+        lrn, inputs, outputs = _history(lib, rec, done)
         est, converged, diverging = lrn.assess(inputs, outputs)
         floor = None if est is None else est.floor
         worth = lrn.input_error(inputs, outputs)
@@ -432,29 +430,20 @@ def _source(rec, done, best: int, floor: float | None) -> str:
     )
 
 
-def best_trial(lib, rec, done) -> tuple[int, float | None]:
-    """(index in ``done``, its input's error_rms): the measured trial with the lowest RMS
-    error, and the true error its input is estimated to leave, from the trials up to it.
-
-    A law designed on a model can pass through its best input and then slowly diverge
-    (an unmodelled resonance grows trial after trial above the model's band): the library
-    keeps the best input the series ran, not the last. On a noisy stage the measured RMS
-    of every trial carries the same noise, so the lowest still points at the best input.
-    """
-    best = int(np.argmin([t.rms for t in done]))
-    if best < 1:
-        return best, None
+def _history(lib, rec, done):
+    """(learner, inputs, outputs) of a series' measured trials, outputs relative to its
+    start: what the learner's verdicts are computed from."""
     lrn = learner(lib.machine(rec.machine), rec.points - rec.origin, rec.options)
-    inputs = np.stack([t.input for t in done[: best + 1]])
-    outputs = np.stack([t.measured for t in done[: best + 1]]) - rec.origin
-    return best, lrn.input_error(inputs, outputs)
+    inputs = np.stack([t.input for t in done])
+    return lrn, inputs, np.stack([t.measured for t in done]) - rec.origin
 
 
 def finish(lib, series: int, *, name: str | None = None, force: bool = False) -> int:
     """Store a series' converged input as a primitive and close the series.
 
     The pair stored is the input of the measured trial with the lowest RMS error
-    (:func:`best_trial`; the last one while the errors fall) with the path, the series'
+    (:meth:`primlib.ilc.TrialLearner.best_input`; the last one while the errors fall) with
+    the path, the series'
     ``origin`` (the absolute start position) as the primitive's ``origin``, and the true
     error that input is estimated to leave as its ``error_rms``; its ``source``
     names the series, its number of trials, final error, noise floor and that position
@@ -492,7 +481,8 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
             f"trial series {series} has not converged ({st.verdict}, last rms "
             f"{done[-1].rms:.6g}, noise floor {st.noise_floor}); run more trials, or force it"
         )
-    best, worth = best_trial(lib, rec, done)
+    lrn, inputs, outputs = _history(lib, rec, done)
+    best, worth = lrn.best_input(inputs, outputs)
     source = _source(rec, done, best, st.noise_floor)
     # a finish interrupted between its two transactions left the primitive: reuse it
     prefix = f"trial series {rec.id}:"
