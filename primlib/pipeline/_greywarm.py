@@ -131,7 +131,7 @@ def model_error(gb: GreyBox, bank: Bank) -> float:
     return float(np.sqrt(np.sum(n * m2) / max(np.sum(n), 1.0)))
 
 
-def _weight(seg, stored_err: float, model_err: float) -> float:
+def _weight(transformed: bool, stored_err: float, model_err: float) -> float:
     """The stored signal's share of a segment's input (1 stored, 0 model).
 
     In place or translated both predictions estimate independent errors of the same needed
@@ -142,7 +142,7 @@ def _weight(seg, stored_err: float, model_err: float) -> float:
     """
     if not np.isfinite(stored_err):
         return 0.0
-    if _transformed(seg):
+    if transformed:
         return 1.0 if stored_err <= model_err else 0.0
     total = stored_err**2 + model_err**2
     return 1.0 if total == 0.0 else model_err**2 / total
@@ -191,11 +191,11 @@ def choose_per_segment(
     weight = np.zeros(u_model.shape[0])
     choices, predicted, shares = [], [], []
     for j, seg in enumerate(segments):
-        stored_err = np.inf
+        stored_err, moved = np.inf, _transformed(seg)
         if seg.primitive is not None:
             e = own.get(int(seg.primitive), 0.0)
-            stored_err = max(e, transformed_err) if _transformed(seg) else e
-        share = _weight(seg, stored_err, model_err)
+            stored_err = max(e, transformed_err) if moved else e
+        share = _weight(moved, stored_err, model_err)
         choices.append("stored" if share == 1.0 else "model" if share == 0.0 else "blend")
         predicted.append((stored_err, model_err))
         shares.append(share)
