@@ -252,7 +252,7 @@ def test_a_match_found_on_a_worse_primitive_is_replaced_by_the_best():
     index = BankIndex(Bank.from_samples([noisy, exact], dt=0.01))
     opts = resolve_options("full", None, None)
     seg = _Segmenter(IndexSearch(index, opts), index, PathPiece(exact, 2.99), eps, opts)
-    first_hit = _Found(Candidate(0, 0.0, 299.0, 0.0), 0.6 * eps, False)
+    first_hit = _Found(Candidate(0, 0.0, 299.0, 0.0), 0.6 * eps)
     out = seg.segment(0.0, 1.0, first_hit)
     assert out.primitive == 1 and out.rmsd < 1e-3 * eps
 

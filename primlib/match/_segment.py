@@ -95,7 +95,6 @@ class Seeder(Protocol):
 class _Found:
     cand: Candidate
     rmsd: float
-    refined: bool
 
 
 def resolve_options(
@@ -168,7 +167,7 @@ class _Segmenter:
         refined, r = refine_many(bank, cands, path, a, b, opts, target=target, give_up=eps,
                                  first=not converge, points=kc, rtol=1e-4)  # fmt: skip
         hit = np.flatnonzero(r < eps)
-        found = _Found(refined[hit[0]], float(r[hit[0]]), True) if hit.size else None
+        found = _Found(refined[hit[0]], float(r[hit[0]])) if hit.size else None
         return found, refined, r
 
     def probe(self, a: float, b: float) -> tuple[_Found | None, float]:
