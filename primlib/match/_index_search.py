@@ -333,9 +333,12 @@ class IndexSearch:
             todo = cand[pos : pos + self.chunk]
             todo = todo[lbw[todo] < pool.threshold]
             pos += self.chunk
-            todo = todo[self.second_bound(aq, w[todo]) < pool.threshold]
+            # the time-scale filter first: cheap, and with a narrow range (a fixed time
+            # scale) it leaves few windows for the principal-value bound
             ok_range, x_end = self.in_range(aq, w[todo])
             todo, x_end = todo[ok_range], x_end[ok_range]
+            keep = self.second_bound(aq, w[todo]) < pool.threshold
+            todo, x_end = todo[keep], x_end[keep]
             r, shape = self.score(aq, w[todo])
             self.stats.scored += todo.size
             ok = np.flatnonzero(shape < gates[todo])
