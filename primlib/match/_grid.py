@@ -113,9 +113,12 @@ class GridSearch:
         √ratio) moves each of the K points by at most h/2 + D(√ratio − 1) samples, i.e. by
         at most that times the largest step between samples (×1.25 for the cubic
         interpolation's overshoot); the RMSD against a fixed query is 1-Lipschitz in the
-        RMS point displacement.
+        RMS point displacement. A fixed time scale (one duration) has no neighbouring
+        scale: only the start moves.
         """
-        cell = dur / (k - 1) / 2.0 + dur * (math.sqrt(self.opts.scale_ratio) - 1.0)
+        lo, hi = self.opts.time_scale
+        spread = math.sqrt(self.opts.scale_ratio) - 1.0 if hi > lo else 0.0
+        cell = dur / (k - 1) / 2.0 + dur * spread
         return 1.25 * self.bank.max_step()[prim] * cell
 
     def _score(self, res, starts, q, qc, sq, k, rotation, gate) -> np.ndarray:

@@ -60,6 +60,7 @@ import numpy as np
 from primlib._errors import InputError
 from primlib.match._bank import BankIndex, as_index
 from primlib.match._checks import check_path_samples
+from primlib.match._grid import GridSearch
 from primlib.match._index_search import IndexSearch
 from primlib.match._kabsch import ROTATION_MODES
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
@@ -509,4 +510,15 @@ def segment_path(
     """
     index = as_index(bank)
     opts = resolve_options(rotation, time_scale, options)
-    return segment_with(IndexSearch(index, opts), index, points, dt, eps, opts, min_step, progress)
+    return segment_with(seeder_for(index, opts), index, points, dt, eps, opts, min_step, progress)
+
+
+def seeder_for(index: BankIndex, opts: SearchOptions) -> Seeder:
+    """The seed search for ``opts``: the arc-length index, or, for a fixed time scale, the
+    time-uniform grid at that one scale (a primitive's candidates are then its starts alone:
+    one resampling of the bank per piece, every start scored, cheaper than sifting the
+    index's windows of every speed for the few at that scale, and exhaustive)."""
+    lo, hi = opts.time_scale
+    if lo == hi:
+        return GridSearch(index, opts)
+    return IndexSearch(index, opts)
