@@ -11,9 +11,9 @@ rotation family everywhere: ``"full"`` (SO(d)), ``"z"`` (about the vertical axis
 
 Modules: ``_kabsch`` (superposition), ``_bounds`` (lower bounds on prefix sums),
 ``_arc_index`` (the index), ``_pool`` (candidate pool), ``_smooth`` (the path the index
-sees), ``_index_search`` (seeds), ``_grid`` (time-uniform grid for short pieces),
-``_refine`` (Gauss–Newton), ``_segment`` (binary search), ``_bank`` (:class:`BankIndex`),
-``_match_path``.
+sees), ``_index_search`` (seeds), ``_grid`` (time-uniform grid for short pieces and fixed
+time scales), ``_refine`` (Gauss–Newton), ``_segment`` (binary search), ``_bank``
+(:class:`BankIndex`), ``_match_path``.
 """
 
 from primlib.match._bank import BankIndex

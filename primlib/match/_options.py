@@ -24,7 +24,8 @@ class SearchOptions:
         Allowed primitive duration / segment duration
         (default :data:`primlib.defaults.TIME_SCALE`).
     grid_points : int
-        K of the time-uniform grid (used for pieces too short in arc length to index).
+        K of the time-uniform grid (used for pieces too short in arc length to index, and
+        for every piece at a fixed time scale).
     scale_ratio : float
         Largest ratio between neighbouring time scales of that grid.
     seeds : int
