@@ -47,11 +47,14 @@ class ScanSearch(IndexSearch):
 
     name: ClassVar[str] = "scan"
 
-    def first_bound(self, aq: ArcQuery) -> np.ndarray:
-        return np.zeros(aq.n_windows)
+    def first_bound(self, aq: ArcQuery, ws: np.ndarray | None = None) -> np.ndarray:
+        return np.zeros(aq.n_windows if ws is None else ws.size)
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
         return np.zeros(ws.size)
+
+    def speed_bound(self, aq: ArcQuery, ws, parts: int = 4) -> np.ndarray:
+        return np.zeros(ws[1] - ws[0] if isinstance(ws, tuple) else ws.size)
 
 
 class InvariantBoundSearch(IndexSearch):
@@ -61,10 +64,11 @@ class InvariantBoundSearch(IndexSearch):
 
     name: ClassVar[str] = "invariant-bound"
 
-    def first_bound(self, aq: ArcQuery) -> np.ndarray:
+    def first_bound(self, aq: ArcQuery, ws: np.ndarray | None = None) -> np.ndarray:
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
         margin = half_bound_margin(aq.k, aq.qc.shape[1], pmax, radius)
-        return half_window_bound(psum, aq.n_windows, aq.dil, aq.moments, margin)
+        n = aq.n_windows if ws is None else ws.size
+        return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws)
 
 
 class _NamedGrid(GridSearch):

@@ -15,6 +15,8 @@ from primlib.match._bounds import (
     half_window_bound,
     half_window_bound_fixed,
     principal_bound,
+    speed_bound,
+    strided_cumsum,
     strided_prefix_sums,
     sym_eigvals,
 )
@@ -163,3 +165,77 @@ def test_closed_form_eigenvalues_match_eigvalsh(d):
     a[:20] = np.eye(d) * 2.0  # repeated eigenvalues
     a[20:40, :, -1] = a[20:40, -1, :] = 0.0  # singular
     np.testing.assert_allclose(sym_eigvals(a), np.linalg.eigvalsh(a)[:, ::-1], atol=1e-6)
+
+
+def _speed_term(x: np.ndarray, k: int, dil: int, tau_q: np.ndarray, ell: float) -> np.ndarray:
+    """ℓ·RMS(τ_w − τ_q) of every window of sample indices x, as the search scores it."""
+    xw = _windows(x[:, None], k, dil)[..., 0]
+    dur = xw[:, -1] - xw[:, 0]
+    still = dur <= 1e-9
+    tau_w = (xw - xw[:, :1]) / np.where(still, 1.0, dur)[:, None]
+    tau_w[still] = tau_q
+    return ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    k=st.integers(3, 30),
+    dil=st.integers(1, 3),
+    parts=st.integers(1, 8),
+    offset=st.sampled_from([0.0, 1e3, 1e6]),
+)
+def test_speed_bound_never_exceeds_the_exact_speed_term(seed, k, dil, parts, offset):
+    rng = np.random.default_rng(seed)
+    m = 60 + (k - 1) * dil
+    # non-decreasing sample indices with stationary stretches (x does not advance)
+    steps = rng.exponential(size=m) * (rng.uniform(size=m) > 0.2)
+    x = offset + np.concatenate([[0.0], np.cumsum(steps[1:])])
+    tau_q = np.concatenate([[0.0], np.sort(rng.uniform(size=k - 2)), [1.0]]) if k > 2 else (
+        np.array([0.0, 1.0])[:k])  # fmt: skip
+    ell = rng.uniform(0.1, 100.0)
+    exact = _speed_term(x, k, dil, tau_q, ell)
+    n = exact.size
+    csum = strided_cumsum(x, dil)
+    sliced = speed_bound(csum, x, (0, n), dil, tau_q, ell, parts)
+    gathered = speed_bound(csum, x, np.arange(n), dil, tau_q, ell, parts)
+    np.testing.assert_allclose(sliced, gathered, rtol=1e-14, atol=1e-14 * ell)
+    assert np.all(sliced <= exact + 1e-12 * ell), np.max(sliced - exact)
+
+
+def test_speed_bound_is_not_vacuous_and_tightens_with_groups():
+    # a speed profile unlike the query's: the bound recovers most of the exact term
+    rng = np.random.default_rng(3)
+    x = np.cumsum(rng.uniform(0.2, 3.0, size=400))
+    k, ell = 20, 10.0
+    tau_q = np.linspace(0.0, 1.0, k) ** 1.5
+    exact = _speed_term(x, k, 1, tau_q, ell)
+    csum = strided_cumsum(x, 1)
+    n = exact.size
+    two = speed_bound(csum, x, (0, n), 1, tau_q, ell, 2)
+    eight = speed_bound(csum, x, (0, n), 1, tau_q, ell, 8)
+    assert np.all(two <= eight + 1e-12)
+    assert np.median(eight / exact) > 0.6
+
+
+@pytest.mark.parametrize("rotation", ["full", "none", "z"])
+def test_gathered_half_window_bound_equals_the_sliced_one(rotation):
+    rng = np.random.default_rng(7)
+    pts = np.cumsum(rng.normal(size=(40000, 3)), axis=0)
+    qc = np.cumsum(rng.normal(size=(12, 3)), axis=0)
+    qc -= qc.mean(axis=0)
+    dil = 2
+    psum, pmax, radius = strided_prefix_sums(pts, dil)
+    query = QueryMoments.of(qc)
+    margin = half_bound_margin(12, 3, pmax, radius)
+    n = pts.shape[0] - 11 * dil
+    starts = np.sort(rng.choice(n, size=20000, replace=False))  # more than one block
+    if rotation == "full":
+        every = half_window_bound(psum, n, dil, query, margin)
+        some = half_window_bound(psum, starts.size, dil, query, margin, starts)
+    else:
+        every = half_window_bound_fixed(psum, n, dil, query, margin, rotation)
+        some = half_window_bound_fixed(psum, starts.size, dil, query, margin, rotation, starts)
+    # the same arithmetic on the same columns; einsum may sum in another order, which the
+    # cancellations of window sums amplify, but never beyond the round-off margin
+    np.testing.assert_allclose(some, every[starts], rtol=0, atol=margin * np.sqrt(3))

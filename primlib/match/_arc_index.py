@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from primlib.match._bounds import strided_prefix_sums
+from primlib.match._bounds import strided_cumsum, strided_prefix_sums
 from primlib.match._interp import linear_at
 from primlib.match._smooth import smooth_bank
 
@@ -84,6 +84,15 @@ class ArcIndex:
         hit = self.cache.get(key)
         if hit is None:
             hit = self.cache[key] = strided_prefix_sums(self.levels[jb].pts, dil)
+        return hit
+
+    def x_sums(self, jb: int, dil: int) -> tuple[np.ndarray, float, float]:
+        """:func:`~primlib.match._bounds.strided_cumsum` of level jb's sample indices at
+        stride dil (the speed-profile bound's input), built once per (level, dilation)."""
+        key = ("x", jb, dil)
+        hit = self.cache.get(key)
+        if hit is None:
+            hit = self.cache[key] = strided_cumsum(self.levels[jb].x, dil)
         return hit
 
     def window_deviation(self, jb: int, n_windows: int, span: int) -> np.ndarray | None:

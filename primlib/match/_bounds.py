@@ -18,7 +18,14 @@ p_a·p_b (:func:`strided_prefix_sums`), so no window is gathered:
   matrices. von Neumann's trace inequality, tr(R P̃ᵀQ̃) ≤ Σ s_i(P̃) s_i(Q̃) for any orthogonal
   R, gives rmsd² ≥ Σ (s_i(P̃) − s_i(Q̃))² / K.
 
-Both are lowered by a proven round-off margin (window sums are differences of running sums:
+A third bound is on the other term of the search's score, ℓ·RMS(τ_w − τ_q) (the normalised
+time at the arc samples, combined with the shape RMSD in quadrature):
+:func:`speed_bound` (every window, before any shape bound) splits the inner samples into
+groups G of consecutive ones, Σ_{i∈G} (τ_w,i − τ_q,i)² ≥ |G|·(mean_G τ_w − mean_G τ_q)²
+(Cauchy–Schwarz), and the group means of τ_w,i = (x_i − x_0)/(x_{K−1} − x_0) come from
+prefix sums of the sample index x (:func:`strided_cumsum`).
+
+All are lowered by a proven round-off margin (window sums are differences of running sums:
 the error of a difference n steps apart is at most (n + 2)·u·max|P|, u = 2⁻⁵³), so they stay
 below the RMSD computed exactly. :func:`gyration_bound` is the one-number bound the
 time-uniform grid uses.
@@ -40,6 +47,8 @@ __all__ = [
     "principal_bound",
     "gyration_bound",
     "sym_eigvals",
+    "strided_cumsum",
+    "speed_bound",
 ]
 
 _U = 2.0**-53  # unit round-off of float64
@@ -171,8 +180,22 @@ def half_bound_margin(k: int, d: int, pmax: np.ndarray, radius: float) -> float:
     return math.sqrt((k1 * k2 / k * err_d * err_d + 2.0 * err_e) / k)
 
 
+def _columns(psum: np.ndarray, rows: int, starts: np.ndarray | None, c0: int, c1: int,
+             shift: int) -> np.ndarray:  # fmt: skip
+    """Columns m + shift of ``psum``'s first ``rows`` rows for the windows m: the block
+    c0 <= m < c1 (a contiguous slice), or ``starts[c0:c1]`` (gathered)."""
+    if starts is None:
+        return psum[:rows, c0 + shift : c1 + shift]
+    return psum[:rows, starts[c0:c1] + shift]
+
+
 def half_window_bound(
-    psum: np.ndarray, n_windows: int, dil: int, query: QueryMoments, margin: float
+    psum: np.ndarray,
+    n_windows: int,
+    dil: int,
+    query: QueryMoments,
+    margin: float,
+    starts: np.ndarray | None = None,
 ) -> np.ndarray:
     """The half-window lower bound of every window m = 0 .. n_windows − 1 (module notes).
 
@@ -186,6 +209,8 @@ def half_window_bound(
     query : QueryMoments
     margin : float
         :func:`half_bound_margin` (subtracted, with 1e-12 of the values).
+    starts : array of int, optional
+        Bound only the windows starting there (``n_windows`` is then ``starts.size``).
 
     Returns
     -------
@@ -199,10 +224,10 @@ def half_window_bound(
     # contiguous slices, no gathering, in cache-sized blocks (2-3x faster than whole arrays)
     for c0 in range(0, n_windows, _BLOCK):
         c1 = min(c0 + _BLOCK, n_windows)
-        p0 = psum[: d + 1, c0:c1]
-        p1 = psum[: d + 1, c0 + k1 * dil : c1 + k1 * dil]
+        p0 = _columns(psum, d + 1, starts, c0, c1, 0)
+        p1 = _columns(psum, d + 1, starts, c0, c1, k1 * dil)
         s1 = p1 - p0
-        s2 = psum[: d + 1, c0 + k * dil : c1 + k * dil] - p1
+        s2 = _columns(psum, d + 1, starts, c0, c1, k * dil) - p1
         dd = s1[:d] * (1.0 / k1) - s2[:d] * (1.0 / k2)  # c1 − c2
         dd = np.sqrt(np.einsum("ij,ij->j", dd, dd))
         dd -= query.half_distance
@@ -234,6 +259,7 @@ def half_window_bound_fixed(
     query: QueryMoments,
     margin: float,
     rotation: str,
+    starts: np.ndarray | None = None,
 ) -> np.ndarray:
     """The half-window bound for the restricted rotation families ``"none"`` and ``"z"``.
 
@@ -244,7 +270,8 @@ def half_window_bound_fixed(
     keeps the z components and the xy norms: the xy parts enter as for ``"full"`` (norms of
     the xy centroid difference, xy radii of gyration), z as for ``"none"``. Both are far
     tighter than the rotation-invariant bound when the family is restricted. ``margin`` as
-    for :func:`half_window_bound`, with the per-axis energies' errors (d times the total's).
+    for :func:`half_window_bound`, with the per-axis energies' errors (d times the total's);
+    ``starts`` as there.
 
     Returns
     -------
@@ -252,14 +279,15 @@ def half_window_bound_fixed(
     """
     k, k1, k2 = query.k, query.k1, query.k2
     d = query.principal.size
+    rows = psum.shape[0]
     diag = [d + 1 + i for i, (a, b) in enumerate(_pairs(d)) if a == b]
     lb = np.empty(n_windows)
     for c0 in range(0, n_windows, _BLOCK):
         c1 = min(c0 + _BLOCK, n_windows)
-        p0 = psum[:, c0:c1]
-        p1 = psum[:, c0 + k1 * dil : c1 + k1 * dil]
+        p0 = _columns(psum, rows, starts, c0, c1, 0)
+        p1 = _columns(psum, rows, starts, c0, c1, k1 * dil)
         s1 = p1 - p0
-        s2 = psum[:, c0 + k * dil : c1 + k * dil] - p1
+        s2 = _columns(psum, rows, starts, c0, c1, k * dil) - p1
         dvec = s1[:d] * (1.0 / k1) - s2[:d] * (1.0 / k2) - query.half_vector[:, None]
         e = [
             np.maximum(s[diag] - s[:d] * s[:d] * (1.0 / kh), 0.0) for s, kh in ((s1, k1), (s2, k2))
@@ -319,6 +347,95 @@ def principal_bound(
     lb -= (
         np.sqrt(d * (err_m + 1e-7 * tr) / k) + query.principal_error + 1e-12 * (query.gyration + lb)
     )
+    return lb
+
+
+def strided_cumsum(x: np.ndarray, dil: int) -> tuple[np.ndarray, float, float]:
+    """Prefix sums C of ``x`` (M,) for the windows {m + i·dil}: Σ_{s<=i<e} x_{m+i·dil} =
+    C[m + e·dil] − C[m + s·dil]; with max |C| and max |x| (for the round-off margins, as in
+    :func:`strided_prefix_sums`)."""
+    m = x.shape[0]
+    rows = -(-m // dil)
+    buf = np.zeros((rows + 1, dil))
+    flat = buf.reshape(-1)
+    flat[dil : dil + m] = x
+    np.cumsum(buf, axis=0, out=buf)
+    return flat, float(np.abs(flat).max(initial=0.0)), float(np.abs(x).max(initial=0.0))
+
+
+def speed_bound(
+    csum: tuple[np.ndarray, float, float],
+    x: np.ndarray,
+    starts: np.ndarray | tuple[int, int],
+    dil: int,
+    tau_q: np.ndarray,
+    ell: float,
+    parts: int = 4,
+) -> np.ndarray:
+    """Lower bound of ℓ·RMS(τ_w − τ_q) of windows of K = ``tau_q.size`` points (module notes).
+
+    Parameters
+    ----------
+    csum : (array, float, float)
+        :func:`strided_cumsum` of ``x`` at stride ``dil``.
+    x : array, shape (M,)
+        Sample index (non-decreasing along each window) at every point.
+    starts : array of int, or (int, int)
+        The windows' first points, or a range (c0, c1) of them (then sliced, not gathered).
+    dil : int
+    tau_q : array, shape (K,)
+        The query's normalised time at its arc samples, 0 first and 1 last.
+    ell : float
+        The query's arc length.
+    parts : int
+        Groups of the K − 2 inner samples (the first and last agree by construction).
+
+    Returns
+    -------
+    array
+        One bound per window; 0 for a window whose x does not advance (the score then has
+        no speed term).
+    """
+    csum_, cmax, xmax = csum
+    k = tau_q.size
+    if isinstance(starts, tuple):
+        c0, c1 = starts
+        n = c1 - c0
+
+        def col(a, off):
+            return a[c0 + off : c1 + off]
+    else:
+        n = starts.size
+
+        def col(a, off):
+            return a[starts + off]
+
+    inner = k - 2
+    if inner <= 0 or n == 0:
+        return np.zeros(n)
+    x0 = col(x, 0)
+    dur = col(x, (k - 1) * dil) - x0
+    moving = dur > 1e-9
+    inv = np.divide(1.0, dur, out=np.ones(n), where=moving)
+    edges = 1 + np.round(np.linspace(0.0, inner, min(parts, inner) + 1)).astype(int)
+    acc = np.zeros(n)
+    for s, e in zip(edges[:-1], edges[1:], strict=True):
+        g = col(csum_, e * dil) - col(csum_, s * dil)
+        g *= 1.0 / (e - s)
+        g -= x0
+        g *= inv
+        g -= float(np.mean(tau_q[s:e]))
+        g *= g
+        g *= (e - s) / k
+        acc += g
+    lb = np.sqrt(acc, out=acc)
+    # round-off: a group sum errs by <= (|G| + 2)·u·max|C|, its mean by <= 3·u·max|C|, the
+    # rest by a few u·max|x|; divided by the duration, doubled for the products
+    inv *= 2.0 * (3.0 * cmax + 8.0 * xmax) * _U
+    lb -= inv
+    lb -= 16.0 * _U + 1e-12 * (1.0 + lb)
+    lb *= ell
+    lb[~moving] = 0.0
     return lb
 
 

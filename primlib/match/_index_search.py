@@ -13,14 +13,16 @@ spacing starting at every point of the next finer level (dilated windows), so no
 grid is needed: a window's duration follows from its arc length, filtered to the time-scale
 range. Each window is scored by the Kabsch RMSD of its arc samples combined with ℓ times the
 RMS difference of the normalised time at the samples (the speed profile), and windows are
-scored best-first in order of provable lower bounds of that RMSD (:mod:`._bounds`: the
-half-window bound on every window, the principal-value bound on the survivors), exact float64
-scores only for what passes — until no unscored window's bound is below the pool's threshold
-(:mod:`._pool`) or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer level's step; a stored
-copy starts within Δ_b/2 of a window). The pool is re-scored at sub-step shifts of its
-windows' starts (a copy is then within Δ_b/8 of a shift); the best ``seeds`` distinct
-windows, and every other one within √2·(3ε + Δ_b/8) of the best, become the seeds, which the
-exact check (:mod:`._segment`) decides between.
+scored best-first in order of provable lower bounds of that score (:mod:`._bounds`: a bound
+on the speed term from prefix sums of the sample index on every window, the half-window
+bound on the shape RMSD on what passes, the principal-value bound on the survivors; a sample
+of the windows fills the pool first so that its threshold prunes from the start), exact
+float64 scores only for what passes — until no unscored window's bound is below the pool's
+threshold (:mod:`._pool`) or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer level's
+step; a stored copy starts within Δ_b/2 of a window). The pool is re-scored at sub-step
+shifts of its windows' starts (a copy is then within Δ_b/8 of a shift); the best ``seeds``
+distinct windows, and every other one within √2·(3ε + Δ_b/8) of the best, become the seeds,
+which the exact check (:mod:`._segment`) decides between.
 
 The index searches the path smoothed within a bound tied to its noise and eps
 (:mod:`._smooth`: white noise lengthens a path's arc far beyond what eps allows for, and
@@ -56,6 +58,7 @@ from primlib.match._bounds import (
     half_window_bound,
     half_window_bound_fixed,
     principal_bound,
+    speed_bound,
 )
 from primlib.match._grid import GridSearch
 from primlib.match._kabsch import rmsd_from_moments
@@ -108,6 +111,42 @@ class ArcQuery:
         return (self.u - self.u[0]) / max(self.u[-1] - self.u[0], 1e-300)
 
 
+@dataclass(frozen=True)
+class _Gates:
+    """Which windows of a query can hold a stored copy (``valid``: enough arc left in the
+    primitive) and each one's gate on the shape RMSD (:meth:`IndexSearch.seeds`)."""
+
+    gate: float
+    stored: np.ndarray | None  # RMS deviation of each window's smoothed samples, or None
+    left: np.ndarray  # level.left
+    need: float  # arc a window must have left
+
+    @classmethod
+    def of(cls, aq: ArcQuery, eps: float) -> _Gates:
+        # a stored copy starts within half a base step of some window start, which moves
+        # every arc sample by at most that: its window's shape RMSD is below the gate; the
+        # copy is within eps + smoothing (+ the stored window's own) of what the index holds
+        gate = 3.0 * (eps + aq.smoothing) + 0.5 * aq.level.step * (1.0 + 1e-6)
+        stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
+        # chord lengths under-estimate arc length a little (more for the stored samples than
+        # for the densely sampled query): let a piece reach a primitive's very end
+        need = aq.ell - max(aq.step, 0.02 * aq.ell)
+        return cls(gate, stored, aq.level.left, need)
+
+    @property
+    def top(self) -> float:
+        return self.gate if self.stored is None else self.gate + 3.0 * float(self.stored.max())
+
+    def at(self, ws: np.ndarray) -> np.ndarray:
+        if self.stored is None:
+            return np.full(ws.size, self.gate)
+        return self.gate + 3.0 * self.stored[ws]
+
+    def valid(self, ws: np.ndarray | tuple[int, int]) -> np.ndarray:
+        left = self.left[ws[0] : ws[1]] if isinstance(ws, tuple) else self.left[ws]
+        return left >= self.need
+
+
 @dataclass
 class IndexSearch:
     """Seeds from the arc-length index with provable lower-bound pruning (module notes)."""
@@ -119,6 +158,9 @@ class IndexSearch:
     pool: int = 2
     pool_cap: int = 48
     chunk: int = 8192
+    first_batch: int = 512
+    sample: int = 32
+    gather_fraction: float = 0.25
     stats: SearchStats = field(default_factory=SearchStats)
     name: ClassVar[str] = "index"
 
@@ -190,24 +232,33 @@ class IndexSearch:
             idx, jb, lv, dil, step, ell, u, qc, sq, QueryMoments.of(qc), dq, per_axis, smoothing
         )
 
-    def first_bound(self, aq: ArcQuery) -> np.ndarray:
-        """Half-window lower bound of every window's shape RMSD (:mod:`._bounds`), the
-        per-axis form when the rotation family is restricted."""
+    def first_bound(self, aq: ArcQuery, ws: np.ndarray | None = None) -> np.ndarray:
+        """Half-window lower bound of the shape RMSD of every window, or of windows ``ws``
+        (:mod:`._bounds`), the per-axis form when the rotation family is restricted."""
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
         d = aq.qc.shape[1]
         margin = half_bound_margin(aq.k, d, pmax, radius)
+        n = aq.n_windows if ws is None else ws.size
         rotation = self.opts.rotation
         if rotation == "full":
-            return half_window_bound(psum, aq.n_windows, aq.dil, aq.moments, margin)
+            return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws)
         # per-axis energies: each carries up to the total's error bound
         return half_window_bound_fixed(
-            psum, aq.n_windows, aq.dil, aq.moments, margin * math.sqrt(d), rotation
+            psum, n, aq.dil, aq.moments, margin * math.sqrt(d), rotation, ws
         )
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
         """Principal-value lower bound of the shape RMSD of windows ``ws``."""
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
         return principal_bound(psum, ws, aq.dil, aq.moments, pmax, radius)
+
+    def speed_bound(self, aq: ArcQuery, ws: np.ndarray | tuple[int, int],
+                    parts: int = 4) -> np.ndarray:  # fmt: skip
+        """Lower bound of the speed-profile term ℓ·RMS(τ_w − τ_q) of the score
+        (:meth:`_combine`, :func:`._bounds.speed_bound`) of windows ``ws`` (an index array,
+        or a range (c0, c1))."""
+        csum = aq.index.x_sums(aq.jb, aq.dil)
+        return speed_bound(csum, aq.level.x, ws, aq.dil, aq.tau, aq.ell, parts)
 
     def in_range(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mask of windows ``ws`` whose time scale is in range, and their end sample index.
@@ -295,76 +346,113 @@ class IndexSearch:
             return self._grid.seeds(path, a, b, eps)
         if aq.n_windows <= 0:
             return []
-        # a stored copy starts within half a base step of some window start, which moves
-        # every arc sample by at most that: its window's shape RMSD is below the gate; the
-        # copy is within eps + smoothing (+ the stored window's own) of what the index holds
-        gate = 3.0 * (eps + aq.smoothing) + 0.5 * aq.level.step * (1.0 + 1e-6)
-        stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
-        gates = gate if stored is None else gate + 3.0 * stored
-        lb1 = self.first_bound(aq)
-        # chord lengths under-estimate arc length a little (more for the stored samples than
-        # for the densely sampled query): let a piece reach a primitive's very end
-        valid = aq.level.left[: aq.n_windows] >= aq.ell - max(aq.step, 0.02 * aq.ell)
         self.stats.queries += 1
-        self.stats.windows += int(np.count_nonzero(valid))
-        w = np.flatnonzero(valid & (lb1 < gates * (1 + 1e-9)))
-        self.stats.bounded += w.size
-        if w.size == 0:
+        pool = self._best_first(aq, _Gates.of(aq, eps))
+        if not pool.items:
             return []
-        pool, where = self._best_first(aq, w, lb1[w], np.broadcast_to(gates, lb1.shape)[w])
-        if not pool:
-            return []
-        extra = 0.0 if stored is None else float(max(stored[where[(c.prim, c.x0)]] for c in pool))
-        return self._reshift(aq, pool, where, eps + aq.smoothing + extra)
+        stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
+        extra = 0.0 if stored is None else float(stored[pool.keys].max())
+        return self._reshift(aq, pool, eps + aq.smoothing + extra)
 
-    def _best_first(self, aq: ArcQuery, w: np.ndarray, lbw: np.ndarray, gates: np.ndarray):
-        """Score windows ``w`` in increasing order of bound 1 (bound 2 on each chunk, exact
-        scores for what passes) until the next bound reaches the pool's threshold: the pool
-        is then exactly the best distinct windows of scoring every window. ``gates``: each
-        window's gate (:meth:`seeds`)."""
+    def _best_first(self, aq: ArcQuery, gates: _Gates) -> CandidatePool:
+        """Score windows best-first in order of lower bounds until none left can enter the
+        pool: the pool is then exactly the best distinct windows of scoring every window.
+
+        A sample of the windows (every ``sample``-th) ranked by the speed bound fills the
+        pool, so its threshold falls before any window is bounded; one pass over every
+        window with a cheap speed bound (2 groups) against it; on what passes, the tighter
+        speed bound and the half-window shape bound, and in increasing order of the two
+        combined (ℓ·τ and shape add in quadrature in the score) the principal-value bound
+        and exact scores, until the next bound reaches the pool's threshold. A window is
+        left out only when its shape bound reaches its gate or its combined bound the
+        pool's :attr:`~._pool.CandidatePool.combined`.
+        """
+        g = gates.top
+        pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, g, math.sqrt(2.0) * g)
+        head = np.arange(0, aq.n_windows, self.sample)
+        head = head[gates.valid(head)]
+        if head.size > self.first_batch:
+            lbs = self.speed_bound(aq, head)
+            head = np.sort(head[np.argpartition(lbs, self.first_batch - 1)[: self.first_batch]])
+        self._batch(aq, pool, head, self.speed_bound(aq, head), None, gates.at(head))
+        rest = self._screen(aq, gates, pool.combined)
+        rest = rest[~np.isin(rest, head, assume_unique=True)]
+        if rest.size == 0:
+            return pool
+        lbs = self.speed_bound(aq, rest)
+        keep = lbs < pool.combined
+        rest, lbs = rest[keep], lbs[keep]
+        if rest.size > self.gather_fraction * aq.n_windows:
+            lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
+        else:
+            lb1 = self.first_bound(aq, rest)
+        lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
+        keep = (lb1 < gates.at(rest)) & (lbc < pool.combined)
+        rest, lbs, lbc = rest[keep], lbs[keep], lbc[keep]
+        self.stats.bounded += head.size + rest.size
+        order = np.argsort(lbc, kind="stable")
+        rest, lbs, lbc = rest[order], lbs[order], lbc[order]
+        pos, size = 0, self.first_batch
+        while pos < rest.size and lbc[pos] < pool.combined:
+            live = pos + np.flatnonzero(lbc[pos : pos + size] < pool.combined)
+            self._batch(aq, pool, rest[live], lbs[live], lbc[live], gates.at(rest[live]))
+            pos += size
+            size = min(2 * size, self.chunk)
+        return pool
+
+    def _screen(self, aq: ArcQuery, gates: _Gates, tau: float) -> np.ndarray:
+        """Every valid window whose 2-group speed bound is below ``tau``, by blocks of
+        windows (cache-sized temporaries); counts the valid windows."""
+        out = []
+        n = aq.n_windows
+        for c0 in range(0, n, 1 << 14):
+            c1 = min(c0 + (1 << 14), n)
+            ok = gates.valid((c0, c1))
+            self.stats.windows += int(np.count_nonzero(ok))
+            if math.isfinite(tau):
+                ok &= self.speed_bound(aq, (c0, c1), parts=2) < tau
+            out.append(c0 + np.flatnonzero(ok))
+        return np.concatenate(out)
+
+    def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
+               lbc: np.ndarray | None, gates: np.ndarray) -> None:  # fmt: skip
+        """Bound (the shape bounds combined with the speed bounds ``lbs``; ``lbc`` the
+        combined half-window bound when known), score and offer windows ``ws``."""
+        if lbc is None:
+            lb1 = self.first_bound(aq, ws)
+            lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
+            keep = (lb1 < gates) & (lbc < pool.combined)
+            ws, lbs, gates = ws[keep], lbs[keep], gates[keep]
+        # the time-scale filter first: cheap, and with a narrow range (a fixed time scale)
+        # it leaves few windows for the principal-value bound
+        ok_range, x_end = self.in_range(aq, ws)
+        ws, x_end, lbs, gates = ws[ok_range], x_end[ok_range], lbs[ok_range], gates[ok_range]
+        lb2 = self.second_bound(aq, ws)
+        keep = (lb2 < gates) & (np.hypot(np.maximum(lb2, 0.0), np.maximum(lbs, 0.0))
+                                < pool.combined)  # fmt: skip
+        ws, x_end, gates = ws[keep], x_end[keep], gates[keep]
+        if ws.size == 0:
+            return
+        r, shape = self.score(aq, ws)
+        self.stats.scored += ws.size
+        ok = (shape < gates) & (r <= pool.combined)
         lv = aq.level
-        gate = float(gates.max())
-        pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, gate,
-                             math.sqrt(2.0) * gate)  # fmt: skip
-        where: dict[tuple[int, float], int] = {}
-        cand = np.argsort(lbw, kind="stable")
-        pos = 0
-        while pos < cand.size and lbw[cand[pos]] < pool.threshold:
-            todo = cand[pos : pos + self.chunk]
-            todo = todo[lbw[todo] < pool.threshold]
-            pos += self.chunk
-            # the time-scale filter first: cheap, and with a narrow range (a fixed time
-            # scale) it leaves few windows for the principal-value bound
-            ok_range, x_end = self.in_range(aq, w[todo])
-            todo, x_end = todo[ok_range], x_end[ok_range]
-            keep = self.second_bound(aq, w[todo]) < pool.threshold
-            todo, x_end = todo[keep], x_end[keep]
-            r, shape = self.score(aq, w[todo])
-            self.stats.scored += todo.size
-            ok = np.flatnonzero(shape < gates[todo])
-            new = []
-            for t in ok[np.argsort(r[ok])[: self.pool_cap]]:
-                m = int(w[todo[t]])
-                c = Candidate(int(lv.prim[m]), float(lv.x[m]), float(x_end[t]), float(r[t]))
-                where[(c.prim, c.x0)] = m
-                new.append(c)
-            pool.offer(new)
-        return pool.items, where
+        pool.offer_arrays(r[ok], lv.prim[ws[ok]], lv.x[ws[ok]], x_end[ok], ws[ok])
 
-    def _reshift(self, aq: ArcQuery, pool: list[Candidate], where: dict, eps: float):
+    def _reshift(self, aq: ArcQuery, pool: CandidatePool, eps: float) -> list[Candidate]:
         """Re-score the pool at sub-step shifts of its starts (the window grid puts a stored
         copy up to half a base step from a window start), keep each window's best; the best
         ``seeds`` and every window within √2·(3·eps + Δ_b/8) of the best are the seeds."""
-        base = np.array([where[(c.prim, c.x0)] for c in pool], dtype=float)
+        base = pool.keys.astype(float)
         r, x0 = self.score_shifted(aq, (base[:, None] + _SHIFTS).ravel())
-        r, x0 = r.reshape(len(pool), -1), x0.reshape(len(pool), -1)
+        r, x0 = r.reshape(base.size, -1), x0.reshape(base.size, -1)
         best = np.argmin(r, axis=1)
-        g0 = aq.level.garc[base.astype(np.int64)] + _SHIFTS[best] * aq.level.step
+        g0 = aq.level.garc[pool.keys] + _SHIFTS[best] * aq.level.step
         x_end = aq.index.arc_to_sample(g0 + aq.ell)
         kept = suppress(
             [
                 Candidate(c.prim, float(x0[i, best[i]]), float(x_end[i]), float(r[i, best[i]]))
-                for i, c in enumerate(pool)
+                for i, c in enumerate(pool.items)
                 if np.isfinite(r[i, best[i]])
             ],
             self.pool_cap,

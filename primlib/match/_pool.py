@@ -2,37 +2,57 @@
 
 Near-duplicate primitives that differ only in speed profile tie on the window grid, so the
 pool keeps, besides the best ``n_best`` distinct windows, every window within ``tie_width``
-of the best (at most ``cap``). Its :attr:`CandidatePool.threshold` is the score no window at
-or above which can still enter: the best-first search stops when every unscored window's
-lower bound reaches it, and the pool is then exactly what scoring every window would give.
+of the best (at most ``cap``). A window is *distinct* when greedy suppression in order of
+score keeps it (:func:`suppress`: one window per basin); equal scores are taken in order of
+the windows' keys, so the pool does not depend on the order windows are offered in. Its
+:attr:`CandidatePool.combined` is the score no window at or above which can still enter:
+the best-first search stops when every unscored window's lower bound reaches it (or the
+gate), and the pool is then exactly what scoring every window would give.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from primlib.match._options import Candidate
 
 __all__ = ["suppress", "CandidatePool", "best_and_ties"]
 
 
-def suppress(cands: list[Candidate], m: int) -> list[Candidate]:
-    """Greedy non-maximum suppression, best score first: one candidate per basin (another of
-    the same primitive overlapping it by more than half the shorter is dropped); at most m."""
-    out: list[Candidate] = []
-    for c in sorted(cands, key=lambda c: c.score):
-        same = False
-        for o in out:
-            if o.prim == c.prim:
-                ov = min(o.x1, c.x1) - max(o.x0, c.x0)
-                if ov > 0.5 * min(o.x1 - o.x0, c.x1 - c.x0):
-                    same = True
-                    break
-        if not same:
-            out.append(c)
+def _overlaps(kept: list[tuple[float, float]], x0: float, x1: float) -> bool:
+    """Whether [x0, x1] overlaps a kept piece of the same primitive by more than half the
+    shorter."""
+    for o0, o1 in kept:
+        if min(o1, x1) - max(o0, x0) > 0.5 * min(o1 - o0, x1 - x0):
+            return True
+    return False
+
+
+def _suppressed_order(prim, x0, x1, order, m: int) -> list[int]:
+    """Positions (in ``order``, best first) that greedy suppression keeps; at most m."""
+    kept: dict[int, list[tuple[float, float]]] = {}
+    out: list[int] = []
+    for i in order:
+        p, a, b = int(prim[i]), float(x0[i]), float(x1[i])
+        same = kept.setdefault(p, [])
+        if not _overlaps(same, a, b):
+            same.append((a, b))
+            out.append(int(i))
             if len(out) == m:
                 break
     return out
+
+
+def suppress(cands: list[Candidate], m: int) -> list[Candidate]:
+    """Greedy non-maximum suppression, best score first: one candidate per basin (another of
+    the same primitive overlapping it by more than half the shorter is dropped); at most m."""
+    order = sorted(range(len(cands)), key=lambda i: cands[i].score)
+    prim = [c.prim for c in cands]
+    x0 = [c.x0 for c in cands]
+    x1 = [c.x1 for c in cands]
+    return [cands[i] for i in _suppressed_order(prim, x0, x1, order, m)]
 
 
 def best_and_ties(cands: list[Candidate], m: int, width: float) -> list[Candidate]:
@@ -57,6 +77,17 @@ class CandidatePool:
         No window scoring at or above the gate is a candidate.
     tie_width : float
         Windows within this of the best are kept besides the best ``n_best``.
+
+    Attributes
+    ----------
+    items : list of Candidate
+        The pool, best first.
+    keys : array of int
+        Each item's key (the search's window index).
+    combined : float
+        No window scoring at or above it can enter the pool (inf until ``n_best`` are in).
+    threshold : float
+        min(gate, combined).
     """
 
     def __init__(self, n_best: int, cap: int, gate: float, tie_width: float) -> None:
@@ -65,26 +96,49 @@ class CandidatePool:
         self.gate = gate
         self.tie_width = tie_width
         self.items: list[Candidate] = []
+        self.keys = np.zeros(0, dtype=np.int64)
+        self.combined = math.inf
         self.threshold = gate
-        self._offered: list[Candidate] = []
+        self._cols = [np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0),
+                      np.zeros(0, dtype=np.int64)]  # fmt: skip
+        self._count = 0
 
     def offer(self, cands: list[Candidate]) -> None:
-        """Add scored windows (each below the gate) and update :attr:`threshold`.
+        """Add scored windows (each below the gate), keyed in the order offered."""
+        n = len(cands)
+        keys = np.arange(self._count, self._count + n, dtype=np.int64)
+        self.offer_arrays(np.array([c.score for c in cands], dtype=float),
+                          np.array([c.prim for c in cands], dtype=np.int64),
+                          np.array([c.x0 for c in cands], dtype=float),
+                          np.array([c.x1 for c in cands], dtype=float), keys)  # fmt: skip
 
-        The suppression runs on every window offered so far, not on the pool kept so far:
-        greedy suppression is not transitive (a window dropped for overlapping a kept one
-        comes back when a better newcomer suppresses that one), so only the whole set gives
-        what offering every window at once gives. The search offers at most ``cap`` windows
-        per chunk of thousands, so the set stays small.
+    def offer_arrays(self, score, prim, x0, x1, keys) -> None:
+        """Add scored windows (each below the gate) as arrays, and update the thresholds.
+
+        The suppression runs on every window offered so far that can still matter (those
+        above :attr:`combined` cannot: they come after the whole pool in score order), not
+        on the pool kept so far: greedy suppression is not transitive (a window dropped for
+        overlapping a kept one comes back when a better newcomer suppresses that one).
         """
-        self._offered.extend(cands)
-        pool = suppress(self._offered, self.cap)
-        tie = pool[0].score + self.tie_width if pool else math.inf
-        pool = [c for i, c in enumerate(pool) if i < self.n_best or c.score < tie]
-        tau = self.gate
-        if len(pool) >= self.n_best:
-            tau = min(tau, max(pool[self.n_best - 1].score, tie))
-        if len(pool) == self.cap:
-            tau = min(tau, pool[-1].score)
-        self.items = pool
-        self.threshold = tau
+        self._count += len(keys)
+        cols = [np.concatenate([c, np.asarray(v)]) for c, v in
+                zip(self._cols, (score, prim, x0, x1, keys), strict=True)]  # fmt: skip
+        sc, pr, a, b, ky = cols
+        order = np.lexsort((ky, sc))
+        kept = _suppressed_order(pr, a, b, order, self.cap)
+        if kept:
+            tie = sc[kept[0]] + self.tie_width
+            kept = [i for j, i in enumerate(kept) if j < self.n_best or sc[i] < tie]
+        tau = math.inf
+        if len(kept) >= self.n_best:
+            tau = max(float(sc[kept[self.n_best - 1]]), tie)
+        if len(kept) == self.cap:
+            tau = min(tau, float(sc[kept[-1]]))
+        self.items = [Candidate(int(pr[i]), float(a[i]), float(b[i]), float(sc[i])) for i in kept]
+        self.keys = ky[kept] if kept else np.zeros(0, dtype=np.int64)
+        self.combined = tau
+        self.threshold = min(self.gate, tau)
+        if math.isfinite(tau):
+            live = sc <= tau
+            cols = [c[live] for c in cols]
+        self._cols = cols

@@ -1,0 +1,60 @@
+"""The pruned best-first search against every window scored, on pieces of a path the library
+does not hold (the pool then fills with near ties, and its threshold does the pruning)."""
+
+import numpy as np
+import pytest
+from _reference_search import ScanSearch
+
+from primlib.match import BankIndex, SearchOptions
+from primlib.match._index_search import IndexSearch, _Gates
+from primlib.match._options import PathPiece
+from primlib.store import Bank
+
+DT = 0.01
+
+
+def _harmonics(rng, k: int, n: int, d: int = 3) -> list[np.ndarray]:
+    """k smooth random curves (sums of 6 harmonics), n samples each, ~50 units wide."""
+    t = np.linspace(0, 1, n)[:, None, None]
+    f = np.arange(1, 7)[None, :, None]
+    out = []
+    for _ in range(k):
+        amp = rng.normal(size=(1, 6, d)) * 50 / f**1.5
+        ph = rng.uniform(0, 2 * np.pi, size=(1, 6, d))
+        out.append((amp * np.sin(2 * np.pi * f * t + ph)).sum(axis=1))
+    return out
+
+
+@pytest.fixture(scope="module")
+def novel():
+    rng = np.random.default_rng(11)
+    bank = BankIndex(Bank.from_samples(_harmonics(rng, 40, 400), DT))
+    path = _harmonics(rng, 1, 600)[0]
+    return bank, PathPiece(path, (len(path) - 1) * DT)
+
+
+@pytest.mark.parametrize("rotation", ["full", "none"])
+@pytest.mark.parametrize(("a", "b"), [(0.0, 0.05), (0.2, 0.24), (0.5, 0.58), (0.3, 0.5)])
+def test_pruned_seeds_equal_every_window_scored(novel, rotation, a, b):
+    bank, path = novel
+    opts = SearchOptions(rotation=rotation)
+    eps = 0.05
+    pruned, scan = IndexSearch(bank, opts), ScanSearch(bank, opts)
+    assert pruned.seeds(path, a, b, eps) == scan.seeds(path, a, b, eps)
+    assert pruned.stats.scored < scan.stats.scored
+
+
+def test_the_pool_is_that_of_every_window_offered_at_once(novel):
+    # a short piece: most windows are below the gate, the pool fills to its cap and only
+    # its threshold prunes; the pool must be what offering every window at once gives
+    bank, path = novel
+    search = IndexSearch(bank, SearchOptions())
+    aq = search.arc_query(path, 0.2, 0.24, 0.05)
+    gates = _Gates.of(aq, 0.05)
+    pool = search._best_first(aq, gates)
+    assert len(pool.items) == search.pool_cap
+    scan = ScanSearch(bank, SearchOptions())
+    whole = scan._best_first(aq, gates)
+    np.testing.assert_array_equal(pool.keys, whole.keys)
+    assert pool.items == whole.items
+    assert search.stats.scored < 0.2 * scan.stats.scored
