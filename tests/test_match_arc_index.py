@@ -61,3 +61,19 @@ def test_fine_index_is_built_once_and_capped():
     # 4x the points of the base level 0 (which has one point per step plus the ends)
     assert fine.step0 == pytest.approx(bank.arc_index().step0 / 4, rel=0.01)
     assert bank.fine_arc_index(0) is bank.arc_index()
+
+
+def test_fine_indexes_keep_level_zero_and_stay_within_the_cap(monkeypatch):
+    import primlib.match._bank as bank_module
+
+    bank = _index()
+    n0 = bank.arc_index().levels[0].pts.shape[0]
+    # room for the 2x and 4x indexes together, not for the 8x one beside them
+    monkeypatch.setattr(bank_module, "_FINE_CAP", 8.5 * n0)
+    two, four = bank.fine_arc_index(1), bank.fine_arc_index(2)
+    assert len(two.levels) == len(four.levels) == 1
+    assert bank.fine_arc_index(1) is two  # kept: 6x n0 points in all
+    eight = bank.fine_arc_index(3)  # 8x: the least recently used (4x), then 2x, go
+    assert bank.fine_arc_index(3) is eight
+    assert bank.fine_arc_index(1) is not two
+    assert sum(f.n_points for f in bank._fine.values()) <= 8.5 * n0 + 2 * bank.k

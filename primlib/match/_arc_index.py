@@ -107,8 +107,16 @@ class ArcIndex:
             cum = self.cache[key] = np.concatenate([[0.0], np.cumsum(lv.dev2)])
         return np.sqrt(np.maximum(cum[span : span + n_windows] - cum[:n_windows], 0.0) / span)
 
+    @property
+    def n_points(self) -> int:
+        """Points over all levels (the index's size)."""
+        return sum(lv.pts.shape[0] for lv in self.levels)
+
     @classmethod
-    def build(cls, bank: BankIndex, points_per_sample: float = 0.25) -> ArcIndex:
+    def build(cls, bank: BankIndex, points_per_sample: float = 0.25,
+              max_levels: int | None = None) -> ArcIndex:  # fmt: skip
+        """Index ``bank`` at ``points_per_sample`` level-0 points per stored sample, at most
+        ``max_levels`` levels (default: up to the longest primitive's 16 steps)."""
         # one pass per step over the flat buffer (offsets mark the primitives), no loop over
         # primitives; each level is taken from the one below it (half the points)
         pts, dev = smooth_bank(bank.points, bank.offsets)
@@ -148,7 +156,9 @@ class ArcIndex:
         x = np.interp(garc, g_samples, sample_idx)
         np.minimum(x, (counts - 1.0)[prim], out=x)
         p = linear_at(pts, bank.offsets[prim], counts[prim], x)
-        dev2 = linear_at((dev * dev)[:, None], bank.offsets[prim], counts[prim], x)[:, 0]
+        dev2 = None
+        if smoothed:
+            dev2 = linear_at((dev * dev)[:, None], bank.offsets[prim], counts[prim], x)[:, 0]
         del dev
         cent = np.add.reduceat(p, base[:-1], axis=0) / n_lv0[:, None]
         p -= cent[prim]
@@ -157,13 +167,14 @@ class ArcIndex:
         lv = 0
         longest = float(length.max())
         while True:
-            levels.append(Level(step0 * (1 << lv), p, prim, x, garc, left,
-                                dev2 if smoothed else None))  # fmt: skip
+            levels.append(Level(step0 * (1 << lv), p, prim, x, garc, left, dev2))
             if p.shape[0] <= 2 * k or (1 << lv) * step0 * 16 > longest:
+                break
+            if max_levels is not None and len(levels) >= max_levels:
                 break
             sel = np.flatnonzero((local & 1) == 0)
             p, prim, x, garc, left = p[sel], prim[sel], x[sel], garc[sel], left[sel]
-            dev2 = dev2[sel]
+            dev2 = None if dev2 is None else dev2[sel]
             local = local[sel] >> 1
             lv += 1
         return cls(step0, tuple(levels), sample_idx, g_samples, smoothed)

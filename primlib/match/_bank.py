@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
 __all__ = ["BankIndex", "as_index"]
 
-# Finer arc-length indexes are capped at this many indexed points (memory ~ 100 B / point).
+# Finer arc-length indexes kept hold at most this many points in all (memory ~ 100 B / point).
 _FINE_CAP = 4e6
 # Points of the base arc-length index per stored sample.
 _BASE_PPS = 0.25
@@ -138,16 +138,25 @@ class BankIndex:
 
     def fine_arc_index(self, j: int) -> ArcIndex:
         """An index 2ʲ times finer than :meth:`arc_index` (for pieces short in arc length),
-        built once; j is capped so it holds at most ~4 million points."""
+        its level 0 only, built once and kept while the finer indexes kept hold at most ~4
+        million points in all (the least recently used are dropped first; j is capped so one
+        alone holds at most that)."""
         base = self.arc_index()
         n0 = base.levels[0].pts.shape[0]
         j = min(j, _finest(n0))
         if j <= 0:
             return base
-        if j not in self._fine:
+        hit = self._fine.pop(j, None)
+        if hit is None:
+            # the least recently used ones go first: all of them together stay within the cap
+            kept = sum(f.n_points for f in self._fine.values())
+            while self._fine and n0 * 2**j + kept > _FINE_CAP:
+                kept -= self._fine.pop(next(iter(self._fine))).n_points
             pps = n0 / max(self.points.shape[0], 1)
-            self._fine[j] = ArcIndex.build(self, points_per_sample=pps * 2**j)
-        return self._fine[j]
+            # a query on a finer index has 16-31 of its steps: only its level 0 is searched
+            hit = ArcIndex.build(self, points_per_sample=pps * 2**j, max_levels=1)
+        self._fine[j] = hit
+        return hit
 
     def finest_step(self) -> float:
         """A lower bound on the arc step of every index :meth:`fine_arc_index` can return.
