@@ -17,13 +17,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from primlib.match._bounds import strided_cumsum, strided_prefix_sums
-from primlib.match._interp import linear_at
 from primlib.match._smooth import smooth_bank
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
 
-__all__ = ["ArcIndex", "Level"]
+__all__ = ["ArcIndex", "Level", "ArcSamples"]
 
 
 @dataclass(frozen=True)
@@ -119,23 +118,11 @@ class ArcIndex:
         ``max_levels`` levels (default: up to the longest primitive's 16 steps)."""
         # one pass per step over the flat buffer (offsets mark the primitives), no loop over
         # primitives; each level is taken from the one below it (half the points)
-        pts, dev = smooth_bank(bank.points, bank.offsets)
+        sm = bank.arc_samples()
+        pts, dev = sm.points, sm.deviation
         smoothed = bool(np.any(dev > 0))
-        counts = bank.counts
         k = bank.k
-        seg = np.empty(pts.shape[0] - 1)
-        for c0 in range(0, seg.size, 1 << 16):  # chunks: no (N, d) temporary
-            c1 = min(c0 + (1 << 16), seg.size)
-            dif = pts[c0 + 1 : c1 + 1] - pts[c0:c1]
-            np.sqrt(np.einsum("ij,ij->i", dif, dif), out=seg[c0:c1])
-        # no arc across primitive boundaries
-        seg[bank.offsets[1:-1] - 1] = 0.0
-        cum = np.empty(pts.shape[0])
-        cum[0] = 0.0
-        np.cumsum(seg, out=cum[1:])
-        del seg
-        starts_arc = cum[bank.offsets[:-1]]
-        length = cum[bank.offsets[1:] - 1] - starts_arc
+        starts_arc, length = sm.starts, sm.length
         total = float(length.sum())
         step0 = max(total / max(points_per_sample * pts.shape[0], 1.0), 1e-300)
         if total <= 0:
@@ -146,20 +133,18 @@ class ArcIndex:
         local = np.arange(base[-1]) - base[:-1][prim]
         arc_local = local * step0
         # arc -> sample index per primitive: one interp on a globally monotone arc axis
-        gap = np.arange(k) * (step0 * 4.0)  # separates primitives on the global axis
-        g_samples = np.repeat(gap, counts)
-        g_samples += cum
-        g_samples += np.arange(g_samples.size) * (1e-12 * max(step0, 1.0))
-        sample_idx = np.arange(pts.shape[0], dtype=float)
-        sample_idx -= np.repeat(bank.offsets[:-1].astype(float), counts)
+        g_samples, sample_idx, gap = sm.garc, sm.x, sm.gap
         garc = arc_local + (starts_arc + gap)[prim]
-        x = np.interp(garc, g_samples, sample_idx)
-        np.minimum(x, (counts - 1.0)[prim], out=x)
-        p = linear_at(pts, bank.offsets[prim], counts[prim], x)
-        dev2 = None
-        if smoothed:
-            dev2 = linear_at((dev * dev)[:, None], bank.offsets[prim], counts[prim], x)[:, 0]
-        del dev
+        # not past a primitive's last sample (arc_local may overshoot its length by 1e-9)
+        g_end = np.minimum(garc, g_samples[bank.offsets[1:] - 1][prim])
+        x = np.interp(g_end, g_samples, sample_idx)
+        # the samples are linear in x between samples, and x in g: linear in g, one interp
+        # per axis (a gather of rows for each end costs ~3x more)
+        p = np.empty((garc.size, pts.shape[1]))
+        for a in range(pts.shape[1]):
+            p[:, a] = np.interp(g_end, g_samples, pts[:, a])
+        dev2 = np.interp(g_end, g_samples, dev * dev) if smoothed else None
+        del g_end
         cent = np.add.reduceat(p, base[:-1], axis=0) / n_lv0[:, None]
         p -= cent[prim]
         left = length[prim] - arc_local
@@ -178,3 +163,61 @@ class ArcIndex:
             local = local[sel] >> 1
             lv += 1
         return cls(step0, tuple(levels), sample_idx, g_samples, smoothed)
+
+
+@dataclass(frozen=True)
+class ArcSamples:
+    """What every arc-length index of a bank is built from (:meth:`of`, once per bank).
+
+    Attributes
+    ----------
+    points : array, shape (N, d)
+        The samples, smoothed like a query (:func:`~primlib.match._smooth.smooth_bank`).
+    deviation : array, shape (N,)
+        Each one's distance from its stored sample (zeros where not smoothed).
+    starts, length : array, shape (k,)
+        Each primitive's first and total arc length on the global axis (primitives laid end
+        to end, without the gaps).
+    garc : array, shape (N,)
+        Global arc coordinate of every sample: its primitive's arc plus ``gap`` (a gap of
+        4 base steps between primitives, a 1e-12 ramp to keep it strictly increasing).
+    x : array, shape (N,)
+        Sample index of every sample within its primitive.
+    gap : array, shape (k,)
+        Offset of each primitive on the global axis.
+    """
+
+    points: np.ndarray
+    deviation: np.ndarray
+    starts: np.ndarray
+    length: np.ndarray
+    garc: np.ndarray
+    x: np.ndarray
+    gap: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, offsets: np.ndarray, base_pps: float) -> ArcSamples:
+        """From the usable primitives' samples laid end to end; ``base_pps``: points of the
+        base index per sample (its step sets the gap)."""
+        pts, dev = smooth_bank(points, offsets)
+        counts = np.diff(offsets)
+        seg = np.empty(max(pts.shape[0] - 1, 0))
+        for c0 in range(0, seg.size, 1 << 16):  # chunks: no (N, d) temporary
+            c1 = min(c0 + (1 << 16), seg.size)
+            dif = pts[c0 + 1 : c1 + 1] - pts[c0:c1]
+            np.sqrt(np.einsum("ij,ij->i", dif, dif), out=seg[c0:c1])
+        seg[offsets[1:-1] - 1] = 0.0  # no arc across primitive boundaries
+        cum = np.zeros(pts.shape[0])
+        np.cumsum(seg, out=cum[1:])
+        del seg
+        starts = cum[offsets[:-1]]
+        length = cum[offsets[1:] - 1] - starts
+        total = float(length.sum())
+        step = max(total / max(base_pps * pts.shape[0], 1.0), 1e-300) if total > 0 else 1.0
+        gap = np.arange(counts.size) * (step * 4.0)  # separates primitives on the axis
+        garc = np.repeat(gap, counts)
+        garc += cum
+        garc += np.arange(garc.size) * (1e-12 * max(step, 1.0))
+        x = np.arange(pts.shape[0], dtype=float)
+        x -= np.repeat(offsets[:-1].astype(float), counts)
+        return cls(pts, dev, starts, length, garc, x, gap)

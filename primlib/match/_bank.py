@@ -10,7 +10,7 @@ import numpy as np
 
 from primlib._errors import NoMatchError
 from primlib.defaults import MAX_ABS_VALUE
-from primlib.match._arc_index import ArcIndex
+from primlib.match._arc_index import ArcIndex, ArcSamples
 from primlib.match._reject import Envelope
 
 if TYPE_CHECKING:
@@ -90,6 +90,7 @@ class BankIndex:
         self.names = names
         self._arc: ArcIndex | None = None
         self._fine: dict[int, ArcIndex] = {}
+        self._arc_samples: ArcSamples | None = None
         self._vmax: np.ndarray | None = None
         self._envelope: Envelope | None = None
         self.index_seconds = 0.0
@@ -135,6 +136,13 @@ class BankIndex:
             self._arc = ArcIndex.build(self, points_per_sample=_BASE_PPS)
             self.index_seconds = time.perf_counter() - t0
         return self._arc
+
+    def arc_samples(self) -> ArcSamples:
+        """What every arc-length index of this bank is built from
+        (:class:`~primlib.match._arc_index.ArcSamples`), computed once."""
+        if self._arc_samples is None:
+            self._arc_samples = ArcSamples.of(self.points, self.offsets, _BASE_PPS)
+        return self._arc_samples
 
     def fine_arc_index(self, j: int) -> ArcIndex:
         """An index 2ʲ times finer than :meth:`arc_index` (for pieces short in arc length),
