@@ -56,6 +56,9 @@ class ScanSearch(IndexSearch):
     def speed_bound(self, aq: ArcQuery, ws, parts: int = 4) -> np.ndarray:
         return np.zeros(ws[1] - ws[0] if isinstance(ws, tuple) else ws.size)
 
+    def speed_screen(self, aq: ArcQuery, block: tuple[int, int], tau: float) -> np.ndarray:
+        return np.ones(block[1] - block[0], dtype=bool)
+
 
 class InvariantBoundSearch(IndexSearch):
     """The index search with the rotation-invariant half-window bound for every rotation

@@ -16,6 +16,7 @@ from primlib.match._bounds import (
     half_window_bound_fixed,
     principal_bound,
     speed_bound,
+    speed_screen,
     strided_cumsum,
     strided_prefix_sums,
     sym_eigvals,
@@ -201,6 +202,13 @@ def test_speed_bound_never_exceeds_the_exact_speed_term(seed, k, dil, parts, off
     gathered = speed_bound(csum, x, np.arange(n), dil, tau_q, ell, parts)
     np.testing.assert_allclose(sliced, gathered, rtol=1e-14, atol=1e-14 * ell)
     assert np.all(sliced <= exact + 1e-12 * ell), np.max(sliced - exact)
+    # the screen keeps every window whose bound (so every one whose exact term) is below
+    # the limit, and drops most of the others
+    two = speed_bound(csum, x, (0, n), dil, tau_q, ell, 2)
+    for limit in np.quantile(exact, [0.1, 0.5, 0.9]):
+        kept = speed_screen(csum, x, (0, n), dil, tau_q, ell, limit)
+        assert np.all(kept[two < limit]) and np.all(kept[exact < limit])
+        assert not np.any(kept[two > limit * (1 + 1e-6) + 1e-9 * ell])
 
 
 def test_speed_bound_is_not_vacuous_and_tightens_with_groups():

@@ -49,6 +49,7 @@ __all__ = [
     "sym_eigvals",
     "strided_cumsum",
     "speed_bound",
+    "speed_screen",
 ]
 
 _U = 2.0**-53  # unit round-off of float64
@@ -437,6 +438,49 @@ def speed_bound(
     lb *= ell
     lb[~moving] = 0.0
     return lb
+
+
+def speed_screen(
+    csum: tuple[np.ndarray, float, float],
+    x: np.ndarray,
+    block: tuple[int, int],
+    dil: int,
+    tau_q: np.ndarray,
+    ell: float,
+    limit: float,
+    parts: int = 2,
+) -> np.ndarray:
+    """Mask of the windows c0 <= m < c1 (``block``) whose :func:`speed_bound` is below
+    ``limit``, without its divisions and square roots: with D the window's duration and
+    h_G = D·(mean_G τ_w − mean_G τ_q), the bound is below the limit unless
+    Σ_G |G|/K·h_G² >= (D·(limit/ℓ + 16u + 1e-12) + E)²·(1 + 1e-11), E the round-off
+    term of :func:`speed_bound` times D; windows whose x does not advance are kept.
+    """
+    csum_, cmax, xmax = csum
+    c0, c1 = block
+    k = tau_q.size
+    inner = k - 2
+    if inner <= 0 or not math.isfinite(limit):
+        return np.ones(c1 - c0, dtype=bool)
+    x0 = x[c0:c1]
+    xe = x[c0 + (k - 1) * dil : c1 + (k - 1) * dil]
+    dur = xe - x0
+    edges = 1 + np.round(np.linspace(0.0, inner, min(parts, inner) + 1)).astype(int)
+    acc = np.zeros(c1 - c0)
+    for s, e in zip(edges[:-1], edges[1:], strict=True):
+        mu = float(np.mean(tau_q[s:e]))
+        h = csum_[c0 + e * dil : c1 + e * dil] - csum_[c0 + s * dil : c1 + s * dil]
+        h *= 1.0 / (e - s)
+        h -= x0 * (1.0 - mu)
+        h -= xe * mu
+        h *= h
+        h *= (e - s) / k
+        acc += h
+    rhs = dur * (limit / ell + 16.0 * _U + 1e-12)
+    rhs += 2.0 * (3.0 * cmax + 8.0 * xmax) * _U
+    rhs *= rhs
+    rhs *= 1.0 + 1e-11
+    return (acc < rhs) | (dur <= 1e-9)
 
 
 def gyration_bound(energy: np.ndarray, query_energy: float, k: int) -> np.ndarray:

@@ -59,6 +59,7 @@ from primlib.match._bounds import (
     half_window_bound_fixed,
     principal_bound,
     speed_bound,
+    speed_screen,
 )
 from primlib.match._grid import GridSearch
 from primlib.match._kabsch import rmsd_from_moments
@@ -260,6 +261,12 @@ class IndexSearch:
         csum = aq.index.x_sums(aq.jb, aq.dil)
         return speed_bound(csum, aq.level.x, ws, aq.dil, aq.tau, aq.ell, parts)
 
+    def speed_screen(self, aq: ArcQuery, block: tuple[int, int], tau: float) -> np.ndarray:
+        """Mask of the windows in ``block`` whose speed bound with 2 groups is below ``tau``
+        (:func:`._bounds.speed_screen`)."""
+        csum = aq.index.x_sums(aq.jb, aq.dil)
+        return speed_screen(csum, aq.level.x, block, aq.dil, aq.tau, aq.ell, tau)
+
     def in_range(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mask of windows ``ws`` whose time scale is in range, and their end sample index.
 
@@ -410,7 +417,7 @@ class IndexSearch:
             ok = gates.valid((c0, c1))
             self.stats.windows += int(np.count_nonzero(ok))
             if math.isfinite(tau):
-                ok &= self.speed_bound(aq, (c0, c1), parts=2) < tau
+                ok &= self.speed_screen(aq, (c0, c1), tau)
             out.append(c0 + np.flatnonzero(ok))
         return np.concatenate(out)
 
