@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from primlib.match._interp import cubic_at
+from primlib.match._interp import cubic_rows
 from primlib.match._kabsch import _rotation_2d
 from primlib.match._options import Candidate, PathPiece, SearchOptions
 from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, clamp, duration_range, hopeless
@@ -24,18 +24,19 @@ if TYPE_CHECKING:
 __all__ = ["refine_many"]
 
 
-def _gather(bank: BankIndex, prim: np.ndarray, x: np.ndarray, derivative: bool = False):
-    """Primitives ``prim`` (m,) at fractional sample indices x (m, k): (m, k, d) arrays."""
-    m, k = x.shape
-    start = np.repeat(bank.offsets[prim], k)
-    count = np.repeat(bank.offsets[prim + 1] - bank.offsets[prim], k)
-    out = cubic_at(bank.points, start, count, x.ravel(), derivative=derivative)
-    if derivative:
-        return out[0].reshape(m, k, -1), out[1].reshape(m, k, -1)
-    return out.reshape(m, k, -1)
-
-
 _EYE2, _EYE3 = np.eye(2), np.eye(3)
+
+
+def _det(a: np.ndarray) -> np.ndarray:
+    """Determinants of (m, d, d) matrices, d in {2, 3}, by cofactors (orthogonal ones here:
+    ±1, so the sign is never in doubt; ``np.linalg.det``'s LU costs more on small ones)."""
+    if a.shape[-1] == 2:
+        return a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
+    return (
+        a[:, 0, 0] * (a[:, 1, 1] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 1])
+        - a[:, 0, 1] * (a[:, 1, 0] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 0])
+        + a[:, 0, 2] * (a[:, 1, 0] * a[:, 2, 1] - a[:, 1, 1] * a[:, 2, 0])
+    )
 
 
 class _Residuals:
@@ -43,6 +44,8 @@ class _Residuals:
 
     def __init__(self, bank: BankIndex, prim: np.ndarray, q: np.ndarray, rotation: str):
         self.bank, self.prim, self.rotation = bank, prim, rotation
+        self.start = bank.offsets[prim][:, None]
+        self.last = bank.offsets[prim + 1][:, None] - self.start - 1
         self.qc = q - q.mean(axis=0)
         self.s = np.linspace(0.0, 1.0, q.shape[0])
         self.w = np.stack([1.0 - self.s, self.s], axis=1)  # ∂x/∂(x0, x1) at each point
@@ -53,7 +56,7 @@ class _Residuals:
         if self.rotation == "full":
             u, _, vt = np.linalg.svd(h)
             v = vt.transpose(0, 2, 1).copy()
-            v[:, :, -1] *= np.where(np.linalg.det(u @ vt) > 0, 1.0, -1.0)[:, None]
+            v[:, :, -1] *= np.where(_det(u @ vt) > 0, 1.0, -1.0)[:, None]
             return v @ u.transpose(0, 2, 1)
         r = np.tile(np.eye(d), (m, 1, 1))
         if self.rotation == "z":
@@ -62,7 +65,7 @@ class _Residuals:
 
     def __call__(self, rows: np.ndarray, z: np.ndarray):
         x = z[:, :1] + (z[:, 1:] - z[:, :1]) * self.s
-        p, dp = _gather(self.bank, self.prim[rows], x, derivative=True)
+        p, dp = cubic_rows(self.bank.points, self.start[rows], self.last[rows], x)
         pc = p - p.mean(axis=1, keepdims=True)
         r = self.rotations(np.einsum("mka,kb->mab", pc, self.qc))
         res = self.qc - pc @ r.transpose(0, 2, 1)
