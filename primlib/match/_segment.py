@@ -30,11 +30,13 @@ matches" is monotone in b, and always a prefix that matches followed by one that
   failed, is not looked for (a non-monotone case; the paper's halving finds it only when it
   lies on its probe points).
 * Inside that search a probe only stretches the match of the longest prefix so far to the
-  new length at the same time scale and refines it (:meth:`_Segmenter.extend`, a few Gauss–
-  Newton steps of one candidate): a success is a match like any other; a failure moves the
-  upper end but proves nothing. The search stops only when the prefix one step (≤ σ) longer
+  new length at the same time scale and refines it until it matches or will not
+  (:meth:`_Segmenter.extend`, a few Gauss–Newton steps of one candidate, none when the
+  stretch already matches): a success is a match like any other; a failure moves the upper
+  end but proves nothing. The search stops only when the prefix one step (≤ σ) longer
   fails both ways — the match stretched and the whole search (seeds from
-  :mod:`._index_search`, refined) — so a prefix is never cut short because the match
+  :mod:`._index_search`, or the time-uniform grid at a fixed time scale, refined) — so a
+  prefix is never cut short because the match
   followed so far left the path while another primitive goes on. On a novel path this
   leaves about two whole searches per segment (the first match, the final failure) where
   the bisection ran about eleven.
@@ -207,10 +209,11 @@ class _Segmenter:
 
     def extend(self, a: float, b_old: float, b: float, found: _Found):
         """The match ``found`` of [a, b_old] stretched to [a, b] at the same time scale and
-        refined to its optimum (a success is a match like any other; a failure proves
-        nothing), and the RMSD it reached."""
+        refined until it is a match or will not become one (a success is a match like any
+        other, taken as soon as it is one: on a long piece most stretches already are; a
+        failure proves nothing), and the RMSD it reached (which places the next split)."""
         self.extensions += 1
-        return self._stretched(a, b_old, b, [found.cand], True)
+        return self._stretched(a, b_old, b, [found.cand], False)
 
     def _first_match(self, ia: int, sig: int, guess: int):
         """Step back from a prefix as long as ``guess`` until one matches: after a whole
