@@ -383,12 +383,20 @@ class IndexSearch:
             head = np.sort(head[np.argpartition(lbs, self.first_batch - 1)[: self.first_batch]])
         self._batch(aq, pool, head, self.speed_bound(aq, head), None, gates.at(head))
         rest = self._screen(aq, gates, pool.combined)
-        rest = rest[~np.isin(rest, head, assume_unique=True)]
+        seen = np.zeros(aq.n_windows, dtype=bool)
+        seen[head] = True
+        rest = rest[~seen[rest]]
         if rest.size == 0:
             return pool
-        lbs = self.speed_bound(aq, rest)
-        keep = lbs < pool.combined
-        rest, lbs = rest[keep], lbs[keep]
+        if math.isfinite(pool.combined):
+            lbs = self.speed_bound(aq, rest)
+            keep = lbs < pool.combined
+            rest, lbs = rest[keep], lbs[keep]
+        else:
+            # fewer than the pool's best few below the gate yet: the speed bound prunes
+            # nothing (a window below the gate enters whatever its speed profile); each
+            # batch bounds its own once the pool has a threshold
+            lbs = np.full(rest.size, -1.0)
         if rest.size > self.gather_fraction * aq.n_windows:
             lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
         else:
@@ -423,8 +431,15 @@ class IndexSearch:
 
     def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
                lbc: np.ndarray | None, gates: np.ndarray) -> None:  # fmt: skip
-        """Bound (the shape bounds combined with the speed bounds ``lbs``; ``lbc`` the
-        combined half-window bound when known), score and offer windows ``ws``."""
+        """Bound (the shape bounds combined with the speed bounds ``lbs``, negative where
+        not computed yet; ``lbc`` the combined half-window bound when known), score and
+        offer windows ``ws``."""
+        if math.isfinite(pool.combined) and lbs.size and lbs.min() < 0:
+            lbs = self.speed_bound(aq, ws)
+            if lbc is not None:  # it held the shape bound alone
+                lbc = np.hypot(lbc, np.maximum(lbs, 0.0))
+                keep = lbc < pool.combined
+                ws, lbs, gates = ws[keep], lbs[keep], gates[keep]
         if lbc is None:
             lb1 = self.first_bound(aq, ws)
             lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
