@@ -84,18 +84,19 @@ def read_index(db: Path) -> dict[str, np.ndarray]:
     return {n: flat[offsets[i] : offsets[i + 1]] for i, n in enumerate(names)}
 
 
-def compare(bank, db: Path, repeat: int = 3) -> dict[str, float]:
-    """Median seconds to build the index of ``bank`` and to read it back from ``db``."""
-    builds = []
-    arrays = None
+def compare(bank, db: Path, repeat: int = 5) -> dict[str, float]:
+    """Median seconds to build the index of ``bank`` and to read it back from ``db``,
+    each build followed by a read (interleaved, so a change of load on a shared machine
+    falls on both alike)."""
+    index = BankIndex(bank)
+    nbytes = write_index(db, index_arrays(index))
+    builds, reads = [], []
+    arrays = back = None
     for _ in range(repeat):
         t0 = time.perf_counter()
         index = BankIndex(bank)
         arrays = index_arrays(index)
         builds.append(time.perf_counter() - t0)
-    nbytes = write_index(db, arrays)
-    reads = []
-    for _ in range(repeat):
         t0 = time.perf_counter()
         back = read_index(db)
         reads.append(time.perf_counter() - t0)

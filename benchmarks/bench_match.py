@@ -218,12 +218,12 @@ def _length_goal(n: int, grow: float, ratio: float, r: dict) -> str:
     return "; ".join(parts) or "-"
 
 
-def index_persistence(bank, folder: Path, repeat: int = 3) -> tuple[float, float, float]:
+def index_persistence(bank, folder: Path, repeat: int = 5) -> tuple[float, float, float]:
     """Median seconds to build the 1,000 primitives' index and to read it from DuckDB."""
     r = index_read_vs_build(bank, folder / "index.duckdb", repeat)
     print(f"\nthe index of {len(bank.ids):,} primitives ({r['mb']:.0f} MB of arrays): build "
           f"{r['build']:.3f} s, read back from a DuckDB file {r['read']:.3f} s "
-          "(medians of 3)")  # fmt: skip
+          f"(medians of {repeat}, interleaved)")  # fmt: skip
     return r["build"], r["read"], r["mb"]
 
 

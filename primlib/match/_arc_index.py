@@ -185,6 +185,9 @@ class ArcSamples:
         Sample index of every sample within its primitive.
     gap : array, shape (k,)
         Offset of each primitive on the global axis.
+    max_step : array, shape (k,), or None
+        Largest distance between consecutive stored samples per primitive, when no
+        primitive was smoothed (else None: the steps above are not the stored ones).
     """
 
     points: np.ndarray
@@ -194,6 +197,7 @@ class ArcSamples:
     garc: np.ndarray
     x: np.ndarray
     gap: np.ndarray
+    max_step: np.ndarray | None = None
 
     @classmethod
     def of(cls, points: np.ndarray, offsets: np.ndarray, base_pps: float) -> ArcSamples:
@@ -209,6 +213,9 @@ class ArcSamples:
         seg[offsets[1:-1] - 1] = 0.0  # no arc across primitive boundaries
         cum = np.zeros(pts.shape[0])
         np.cumsum(seg, out=cum[1:])
+        # the largest stored step per primitive (the envelopes' margin), when these are the
+        # stored samples themselves
+        big = np.maximum.reduceat(np.append(seg, 0.0), offsets[:-1]) if pts is points else None
         del seg
         starts = cum[offsets[:-1]]
         length = cum[offsets[1:] - 1] - starts
@@ -220,4 +227,4 @@ class ArcSamples:
         garc += np.arange(garc.size) * (1e-12 * max(step, 1.0))
         x = np.arange(pts.shape[0], dtype=float)
         x -= np.repeat(offsets[:-1].astype(float), counts)
-        return cls(pts, dev, starts, length, garc, x, gap)
+        return cls(pts, dev, starts, length, garc, x, gap, big)

@@ -182,6 +182,9 @@ class BankIndex:
 
     def max_step(self) -> np.ndarray:
         """Largest distance between consecutive samples, per primitive, shape (k,)."""
+        if self._vmax is None and self.k > 0:
+            # the arc-length index measures the same steps (computed once for both)
+            self._vmax = self.arc_samples().max_step
         if self._vmax is None:
             pts = self.points
             step = np.empty(max(pts.shape[0] - 1, 0))
