@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -62,6 +63,7 @@ class GridSearch:
     bank: BankIndex
     opts: SearchOptions
     stats: SearchStats = field(default_factory=SearchStats)
+    name: ClassVar[str] = "grid"
 
     def _windows(self, path: PathPiece, a: float, b: float) -> Iterator[tuple]:
         """Yield, per time scale, the resampled bank and its valid windows."""
