@@ -33,13 +33,17 @@ def novel():
     return bank, PathPiece(path, (len(path) - 1) * DT)
 
 
+# chunk: windows a query has at most to be searched in one batch (a small library); 256
+# sends every query here through the sample, the screen and the best-first batches
+@pytest.mark.parametrize("chunk", [256, 8192])
 @pytest.mark.parametrize("rotation", ["full", "none"])
 @pytest.mark.parametrize(("a", "b"), [(0.0, 0.05), (0.2, 0.24), (0.5, 0.58), (0.3, 0.5)])
-def test_pruned_seeds_equal_every_window_scored(novel, rotation, a, b):
+def test_pruned_seeds_equal_every_window_scored(novel, rotation, a, b, chunk):
     bank, path = novel
     opts = SearchOptions(rotation=rotation)
     eps = 0.05
-    pruned, scan = IndexSearch(bank, opts), ScanSearch(bank, opts)
+    pruned = IndexSearch(bank, opts, chunk=chunk, first_batch=64)
+    scan = ScanSearch(bank, opts, chunk=chunk, first_batch=64)
     assert pruned.seeds(path, a, b, eps) == scan.seeds(path, a, b, eps)
     assert pruned.stats.scored < scan.stats.scored
 
@@ -48,12 +52,13 @@ def test_the_pool_is_that_of_every_window_offered_at_once(novel):
     # a short piece: most windows are below the gate, the pool fills to its cap and only
     # its threshold prunes; the pool must be what offering every window at once gives
     bank, path = novel
-    search = IndexSearch(bank, SearchOptions())
+    search = IndexSearch(bank, SearchOptions(), chunk=256, first_batch=64)
     aq = search.arc_query(path, 0.2, 0.24, 0.05)
+    assert aq.n_windows > 4 * search.chunk  # the sample, the screen, the batches
     gates = _Gates.of(aq, 0.05)
     pool = search._best_first(aq, gates)
     assert len(pool.items) == search.pool_cap
-    scan = ScanSearch(bank, SearchOptions())
+    scan = ScanSearch(bank, SearchOptions(), chunk=256, first_batch=64)
     whole = scan._best_first(aq, gates)
     np.testing.assert_array_equal(pool.keys, whole.keys)
     assert pool.items == whole.items

@@ -376,6 +376,14 @@ class IndexSearch:
         """
         g = gates.top
         pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, g, math.sqrt(2.0) * g)
+        if aq.n_windows <= self.chunk:
+            # few windows (a small library): one batch, one exact scoring; each call costs
+            # more than the windows a threshold would spare
+            ws = np.flatnonzero(gates.valid((0, aq.n_windows)))
+            self.stats.windows += ws.size
+            self.stats.bounded += ws.size
+            self._batch(aq, pool, ws, self.speed_bound(aq, ws), None, gates.at(ws))
+            return pool
         head = np.arange(0, aq.n_windows, self.sample)
         head = head[gates.valid(head)]
         if head.size > self.first_batch:
