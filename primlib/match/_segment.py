@@ -151,24 +151,22 @@ class _Segmenter:
         # the last failing whole search: (a, b, its seeds, them refined, best first)
         self.failed: tuple[float, float, list[Candidate], list[Candidate]] | None = None
 
-    def _try(self, a: float, b: float, seeds: list[Candidate], kc: int, converge=False):
+    def _try(self, a: float, b: float, seeds: list[Candidate], kc: int):
         """A seed within eps of [a, b] as it comes or once refined (or None), and every
         seed refined, with its RMSD (inf for a primitive too short for the time scales).
 
         The seeds are refined together (:func:`._refine_many.refine_many`) on the check's own
         kc points until one is below eps (a match; one that matches as it comes stops them
-        before any step), giving up on those that will not be; with ``converge``, each to
-        its optimum (its RMSD then places the next split).
+        before any step), giving up on those that will not be.
         """
         bank, path, opts, eps = self.bank, self.path, self.opts, self.eps
         dur = (b - a) * path.duration
         shortest = opts.time_scale[0] * dur / bank.dt * (1 - 1e-9)
         # a primitive too short for the time-scale range is clamped below it: not a match
         cands = [c for c in (clamp(bank, s, dur, opts) for s in seeds) if c.x1 - c.x0 >= shortest]
-        target = 0.0 if converge else eps * (1 - 1e-9)
         # converged to 1e-4 of the cost: the RMSD only places the next split
-        refined, r = refine_many(bank, cands, path, a, b, opts, target=target, give_up=eps,
-                                 first=not converge, points=kc, rtol=1e-4)  # fmt: skip
+        refined, r = refine_many(bank, cands, path, a, b, opts, target=eps * (1 - 1e-9),
+                                 give_up=eps, first=True, points=kc, rtol=1e-4)  # fmt: skip
         hit = np.flatnonzero(r < eps)
         found = _Found(refined[hit[0]], float(r[hit[0]])) if hit.size else None
         return found, refined, r
@@ -200,11 +198,11 @@ class _Segmenter:
             self.failed = (a, b, seeds, [refined[i] for i in np.argsort(r, kind="stable")])
         return found, float(r.min(initial=np.inf))
 
-    def _stretched(self, a: float, b_old: float, b: float, cands: list[Candidate], converge):
+    def _stretched(self, a: float, b_old: float, b: float, cands: list[Candidate]):
         """Candidates for [a, b_old] stretched to [a, b] at their time scales, tried."""
         k = (b - a) / (b_old - a)
         cands = [Candidate(c.prim, c.x0, c.x0 + k * (c.x1 - c.x0), 0.0) for c in cands]
-        found, _, r = self._try(a, b, cands, self.path.confirm_points(a, b), converge)
+        found, _, r = self._try(a, b, cands, self.path.confirm_points(a, b))
         return found, float(r.min(initial=np.inf))
 
     def extend(self, a: float, b_old: float, b: float, found: _Found):
@@ -213,7 +211,7 @@ class _Segmenter:
         other, taken as soon as it is one: on a long piece most stretches already are; a
         failure proves nothing), and the RMSD it reached (which places the next split)."""
         self.extensions += 1
-        return self._stretched(a, b_old, b, [found.cand], False)
+        return self._stretched(a, b_old, b, [found.cand])
 
     def _first_match(self, ia: int, sig: int, guess: int):
         """Step back from a prefix as long as ``guess`` until one matches: after a whole
@@ -238,7 +236,7 @@ class _Segmenter:
                 for at in sorted({min(max(near, half), length - 1), half}, reverse=True):
                     if at >= _MIN_SAMPLES - 1:
                         self.extensions += 1
-                        found, _ = self._stretched(ia * v, hi * v, (ia + at) * v, failed[3], False)
+                        found, _ = self._stretched(ia * v, hi * v, (ia + at) * v, failed[3])
                         if found is not None:
                             return found, ia + at, hi, r_hi, {"probe"}
             length = half
