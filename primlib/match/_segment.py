@@ -64,9 +64,9 @@ from primlib.match._bank import BankIndex, as_index
 from primlib.match._checks import check_path_samples
 from primlib.match._grid import GridSearch
 from primlib.match._index_search import IndexSearch
-from primlib.match._kabsch import ROTATION_MODES
+from primlib.match._kabsch import ROTATION_MODES, kabsch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
-from primlib.match._refine import clamp, piece_rmsd
+from primlib.match._refine import clamp, piece_rmsd, prim_at
 from primlib.match._refine_many import refine_many
 from primlib.match._reject import rejects
 from primlib.match._types import Segment
@@ -213,6 +213,41 @@ class _Segmenter:
         self.extensions += 1
         return self._stretched(a, b_old, b, [found.cand])
 
+    def within(self, ia: int, lo: int, hi: int, found: _Found) -> tuple[int, _Found] | None:
+        """After the match of [ia, lo] failed stretched to hi, the longest prefix between
+        that it provably keeps within eps, tried (so a match like any other), or None.
+
+        The match's rotation and translation fitted on [ia, lo], kept, carry the stretched
+        piece onto every path sample up to hi: the residuals e_j bound every prefix's RMSD,
+        (Σ_{j<n} |e_j|² − |Σ_{j<n} e_j|²/n)/n for n samples (the translation re-fitted; a
+        refit of the rest only lowers it). Past a join they grow from one sample to the
+        next: the bracket closes there in one step where the power-law splits crept on.
+        """
+        c, bank = found.cand, self.bank
+        n_p = int(bank.offsets[c.prim + 1] - bank.offsets[c.prim])
+        per = (c.x1 - c.x0) / (lo - ia)  # stored samples per path sample
+        top = min(hi - 1, ia + int((n_p - 1 - c.x0) / per))  # the piece stays in its primitive
+        if top <= lo:
+            return None
+        x = c.x0 + per * np.arange(top - ia + 1)
+        p = prim_at(bank, c.prim, x)
+        q = self.path.points[ia : top + 1]
+        fit = kabsch(p[: lo - ia + 1], q[: lo - ia + 1], rotation=self.opts.rotation)
+        res = q - p @ np.asarray(fit.rotation).T - fit.translation
+        e2 = np.cumsum(np.einsum("kd,kd->k", res, res))
+        es = np.cumsum(res, axis=0)
+        n = np.arange(1, res.shape[0] + 1)
+        r2 = (e2 - np.einsum("kd,kd->k", es, es) / n) / n
+        ok = np.flatnonzero(r2[lo - ia + 1 :] < (0.999 * self.eps) ** 2)
+        if ok.size == 0:
+            return None
+        at = lo + 1 + int(ok[-1])  # end sample of the longest such prefix
+        a, b = ia / (self.path.n - 1), at / (self.path.n - 1)
+        short = Candidate(c.prim, c.x0, c.x0 + per * (at - ia), 0.0)
+        self.extensions += 1
+        near, _, _ = self._try(a, b, [short], self.path.confirm_points(a, b))
+        return None if near is None else (at, near)
+
     def _first_match(self, ia: int, sig: int, guess: int):
         """Step back from a prefix as long as ``guess`` until one matches: after a whole
         search fails at L, its refined seeds are tried shrunk (at their time scales) to
@@ -267,6 +302,9 @@ class _Segmenter:
                     if side < 0:
                         r_lo = 0.5 * (r_lo + self.eps)  # Illinois: the stuck end counts half
                     side = -1
+                    near = self.within(ia, lo, hi, found)
+                    if near is not None:
+                        lo, found, r_lo, side = near[0], near[1], near[1].rmsd, 0
                 else:
                     lo, found, r_lo = iv, ext, ext.rmsd
                     if side > 0:
