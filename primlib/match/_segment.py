@@ -33,7 +33,9 @@ matches" is monotone in b, and always a prefix that matches followed by one that
   new length at the same time scale and refines it until it matches or will not
   (:meth:`_Segmenter.extend`, a few Gauss–Newton steps of one candidate, none when the
   stretch already matches): a success is a match like any other; a failure moves the upper
-  end but proves nothing. The search stops only when the prefix one step (≤ σ) longer
+  end but proves nothing, and is followed by the longest prefix the match's own fit keeps
+  provably within ε up to there (:meth:`_Segmenter.within`: at a join, the join itself).
+  The search stops only when the prefix one step (≤ σ) longer
   fails both ways — the match stretched and the whole search (seeds from
   :mod:`._index_search`, or the time-uniform grid at a fixed time scale, refined) — so a
   prefix is never cut short because the match
