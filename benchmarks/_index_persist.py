@@ -7,7 +7,8 @@ length, a pyramid of levels) and the per-primitive envelopes of the up-front rej
 uses for points: Arrow list columns over flat numpy buffers, read back zero-copy), written
 when the machine's primitives change. This module times, on the same bank:
 
-* ``build``: a fresh ``BankIndex``, ``arc_index()`` and ``envelope()`` (median of runs);
+* ``build``: a fresh ``BankIndex``, ``arc_index()`` and ``envelope()`` (median of runs,
+  each followed by a read);
 * ``read``: a fresh DuckDB connection, the stored arrays read back as numpy arrays, on a
   file written by the same run (median of runs), without even the validation a real
   store would add (that the stored index belongs to the stored primitives).

@@ -16,8 +16,10 @@ Reports, each beside its baseline measured in the same run:
 * first-call and warm match time against library size 10 / 100 / 1,000.
 
 * the persisted index: reading the 1,000 primitives' index and envelopes back from a
-  DuckDB file against building them (``_index_persist.py``); reading is no cheaper (0.725 s
-  against 0.729 s in one run at load 6), so the index is not kept in the library file.
+  DuckDB file against building them (``_index_persist.py``, interleaved, medians of 5);
+  reading is no cheaper (0.48 s against a 0.47 s build, 0.78 s against 0.76 s, in two runs
+  at load 4-5; before a stored index could be used it would also have to be checked
+  against the stored primitives), so the index is not kept in the library file.
 
 Run: ``python benchmarks/bench_match.py`` (single-threaded BLAS; ``--full-grid`` also runs
 the time grid on 1,000 primitives, about ten minutes; ``--restricted`` instead times the
