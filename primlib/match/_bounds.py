@@ -88,11 +88,14 @@ def strided_prefix_sums(pts: np.ndarray, dil: int) -> tuple[np.ndarray, np.ndarr
     pairs = _pairs(d)
     buf = np.zeros((d + 1 + len(pairs), rows + 1, dil))
     flat = buf.reshape(buf.shape[0], -1)
-    flat[:d, dil : dil + m] = pts.T
+    coords = flat[:d, dil : dil + m]
+    coords[...] = pts.T  # contiguous rows: the products below read them, not pts' columns
     for i, (a, b) in enumerate(pairs):
-        np.multiply(pts[:, a], pts[:, b], out=flat[d + 1 + i, dil : dil + m])
-    diag = [d + 1 + i for i, (a, b) in enumerate(pairs) if a == b]
-    np.sum(flat[diag, dil : dil + m], axis=0, out=flat[d, dil : dil + m])
+        np.multiply(coords[a], coords[b], out=flat[d + 1 + i, dil : dil + m])
+    energy = flat[d, dil : dil + m]
+    for i, (a, b) in enumerate(pairs):
+        if a == b:
+            energy += flat[d + 1 + i, dil : dil + m]
     radius = math.sqrt(float(flat[d].max())) if m else 0.0
     np.cumsum(buf, axis=1, out=buf)
     return flat, np.maximum(flat.max(axis=1), -flat.min(axis=1)), radius
