@@ -85,6 +85,7 @@ STARTS = ("warm", "model-only", "refined", "nominal", "cold")
 KINDS = ("in place", "translated", "rotated/scaled")
 HARD = ("friction 2 %", "friction 5 %", "ripple 2 %", "resonance 20 Hz", "all")
 EPS = 0.01  # match tolerance, mm
+_LIBRARY_TRIALS = 100  # trial numbers each primitive's series may use (its first is 100 k)
 FLOOR_MIN = 1e-4  # mm: a noise-free machine's "floor" is a precision, not zero
 TABLE = (200.0, 150.0, 40.0)  # the machine's travel, mm: where primitives are placed
 
@@ -130,15 +131,19 @@ def learn_library(
 ) -> list[dict]:
     """Each example primitive learned on the machine at its own place; stored with it."""
     placed = []
-    for stem, T, shape in ex.PRIMITIVES[:count]:
+    for k, (stem, T, shape) in enumerate(ex.PRIMITIVES[:count]):
         origin = rng.uniform(0.0, 1.0, 3) * (np.array(TABLE) - 60.0) + 10.0
         pts = ex.primitive_samples(shape, T, nominal.dt, origin)
         traj = Trajectory.from_samples(pts, nominal.dt)
         ref = traj.sample(nominal.dt)
         ref = ref - ref[0]
         learner = TrialLearner(nominal, ref)
+        # each primitive's trials are trials of their own (a machine's noise and disturbance
+        # differ from run to run); the same trial numbers for every primitive would replay
+        # one noise sequence into all of them, which the grey-box fit then takes for the
+        # machine's structure
         errors, inputs, outputs = run_series(
-            true, learner, origin, invert(nominal, ref), trials, 0, stop=True
+            true, learner, origin, invert(nominal, ref), trials, _LIBRARY_TRIALS * k, stop=True
         )
         # what a finished series stores (primlib.trials.finish): the input of the trial with
         # the lowest measured error, run until the learner's stop rule (the noise floor) or
@@ -203,7 +208,7 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
                 starts, ref, ws = first_inputs(lib, nominal, pts)
                 learner = TrialLearner(nominal, ref)
                 runs = {
-                    s: run_series(true, learner, pts[0], u0, args.trials, 1000 + j)[0]
+                    s: run_series(true, learner, pts[0], u0, args.trials, 100_000 + j)[0]
                     for s, u0 in starts.items()
                 }
                 floor = max(min(float(np.min(e)) for e in runs.values()), FLOOR_MIN)
