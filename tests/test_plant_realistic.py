@@ -129,6 +129,19 @@ def test_ripple_depends_on_the_absolute_position():
     assert 1e-3 < np.abs(y0 - lin).max() / np.abs(lin).max() < 0.1
 
 
+def test_the_ripple_integrates_to_second_order_in_the_substep():
+    # the ripple is taken half-way through each substep (midpoint rule): 4 substeps are
+    # within (w v h)^2 / 24 of 64 (w v h = 0.08 here, so ~3e-4 of the ripple's effect);
+    # taken at the substep's start they were w v h / 2 = 4 % off
+    u = np.full((400, 3), 40.0)
+    start = np.array([1.0, 2.0, 3.0])
+    ys = {k: xyz(ripple=0.3, ripple_pitch=5.0, substeps=k).simulate(u, start=start)
+          for k in (4, 64)}  # fmt: skip
+    effect = np.abs(ys[64] - XYZ.simulate(u)).max()
+    assert effect > 1e-3
+    assert np.abs(ys[4] - ys[64]).max() < 1e-3 * effect
+
+
 def test_measurement_noise_is_off_by_default_seeded_and_of_the_asked_std():
     rm = xyz(noise=0.001, viscous=0.05)
     u = np.full((20000, 3), 1.0)

@@ -26,8 +26,9 @@ Velocity and integration. Each loop axis is a continuous state space ``x' = A x 
 (``scipy.signal.tf2ss`` of ``G``, then the resonance in series), ``y_m = C x``. With relative
 degree >= 2, ``C B = 0`` and the motor velocity is exactly ``v = C A x``. Viscous friction is
 linear velocity feedback, folded into ``A`` (``A - c_v B C A``), hence integrated exactly.
-A sample is cut into ``substeps``; in each, the force ``w`` (input, disturbance, ripple at
-the substep's start) is held and the state advanced by the exact zero-order hold
+A sample is cut into ``substeps``; in each, the force ``w`` (input, disturbance, ripple
+where the carriage is half-way through the substep) is held and the state advanced by the
+exact zero-order hold
 ``x+ = A_d x + B_d w`` (``scipy.linalg.expm``), so with Coulomb friction and ripple off the
 loop is the ZOH model up to rounding. Coulomb friction is a set-valued force in a
 Moreau-type time-stepping (as :mod:`primlib.plant._linear_motor`): with ``v_free`` the

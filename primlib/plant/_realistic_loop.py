@@ -87,7 +87,7 @@ def loop_kernel(axis: str, num, den, dep, dt: float, substeps: int) -> tuple:
         vf,
         tuple(float(c) for c in Cy),
         (dep["coulomb"], dep["static_ratio"], dep["stribeck_velocity"]),
-        (dep["ripple"], w0, dep["ripple_phase"]),
+        (dep["ripple"], w0, dep["ripple_phase"], h / 2),
         substeps,
         m,
     )
@@ -121,15 +121,18 @@ def _stepper(kern: tuple, start: float):
     """The ``substeps`` of one sample for one loop axis: ``step(x, v, cmd) -> (x, v)``.
 
     Plain floats in closures (numpy's call overhead on a 2-vector is ten times the
-    arithmetic); the usual rigid axis (two states, no resonance) is written out."""
-    Ad, Bd, Cp, CvAd, vf, _, fr, (c_r, w0, phi), nsub, m = kern
+    arithmetic); the usual rigid axis (two states, no resonance) is written out. The ripple
+    is taken where the carriage is half-way through the substep (``p + v h / 2``, the
+    midpoint rule): at the substep's start it would lag the continuous force by ``w v h / 2``
+    rad, 4 % of the ripple for a 5 mm pitch at 50 mm/s and 4 substeps of 5 ms."""
+    Ad, Bd, Cp, CvAd, vf, _, fr, (c_r, w0, phi, half), nsub, m = kern
     if len(Bd) != 2:
 
         def step(x, v, cmd):
             for _ in range(nsub):
                 w = cmd
                 if c_r != 0.0:
-                    p = start + sum(c * xi for c, xi in zip(Cp, x, strict=True))
+                    p = start + sum(c * xi for c, xi in zip(Cp, x, strict=True)) + v * half
                     w -= c_r * math.sin(w0 * p + phi)
                 v_free = sum(c * xi for c, xi in zip(CvAd, x, strict=True)) + vf * w
                 fric, v_new = _friction(v, v_free, vf, fr)
@@ -154,7 +157,7 @@ def _stepper(kern: tuple, start: float):
         for _ in range(nsub):
             w = cmd
             if c_r != 0.0:
-                w -= c_r * math.sin(w0 * (start + p0 * x0 + p1 * x1) + phi)
+                w -= c_r * math.sin(w0 * (start + p0 * x0 + p1 * x1 + v * half) + phi)
             v_free = q0 * x0 + q1 * x1 + vf * w
             fric, v_new = _friction(v, v_free, vf, fr)
             if not (v == 0.0 and v_new == 0.0 and fric != 0.0):  # else stuck: at rest
