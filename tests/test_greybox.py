@@ -12,6 +12,7 @@ from stage_helpers import stage_pair as _stage_pair
 
 from primlib import InputError
 from primlib.greybox import TERMS, Pair, fit_greybox
+from primlib.greybox._features import coulomb_column, ripple_columns
 from primlib.plant import Machine, invert
 
 
@@ -62,6 +63,29 @@ def test_the_inverse_follows_a_new_path_at_a_new_place(stage_fit):
     # the three parts add up to the inverse
     u_lin, lin, non = gb.terms(path, origin)
     assert np.allclose(u_lin + lin + non, gb.inverse(path, origin))
+
+
+def test_the_coulomb_column_is_the_mean_sign_over_each_interval():
+    dt = 0.01
+    y = np.sin(2 * np.pi * (np.arange(60) * dt + 0.003))  # reverses between samples 24, 25
+    col = coulomb_column(y, dt, speed=5.0)
+    v = np.gradient(y, dt)
+    s = np.linspace(0.0, 1.0, 20001)
+    for k in range(len(y) - 1):  # velocity linear between the samples' central differences
+        assert col[k] == pytest.approx(np.mean(np.sign(v[k] + (v[k + 1] - v[k]) * s)), abs=1e-3)
+    assert 0 < col[24] < 1 and np.all(np.abs(np.delete(col, 24)) == 1)
+    # an axis at rest, or still up to rounding, gets no Coulomb force at all
+    still = 40.0 + 1e-13 * np.random.default_rng(0).standard_normal(60)
+    assert np.all(coulomb_column(still, dt, speed=5.0) == 0)
+
+
+def test_the_ripple_columns_are_their_mean_over_each_interval():
+    w, x = 1.3, np.cumsum(np.r_[2.0, np.linspace(0.1, 0.9, 30)])
+    cols = ripple_columns(x, np.diff(x, append=x[-1]), w)
+    s = ((np.arange(4000) + 0.5) / 4000)[:, None]  # midpoint rule: error ~1e-8
+    dense = x[:-1] + s * np.diff(x)  # uniform motion over each interval
+    np.testing.assert_allclose(cols[:-1, 0], np.sin(w * dense).mean(axis=0), atol=1e-6)
+    np.testing.assert_allclose(cols[:-1, 1], np.cos(w * dense).mean(axis=0), atol=1e-6)
 
 
 def test_nothing_is_invented_on_a_linear_machine():

@@ -26,14 +26,22 @@ many samples averages it out.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from scipy import optimize, signal
 
 from primlib._errors import InputError
-from primlib.greybox._features import LINEAR, NONLINEAR, POSITION, TERMS, axis_features, speed_scale
+from primlib.greybox._features import (
+    LINEAR,
+    NONLINEAR,
+    POSITION,
+    TERMS,
+    axis_features,
+    ripple_columns,
+    speed_scale,
+)
 from primlib.plant import Machine, invert
 
 __all__ = ["GreyBox", "Pair", "fit_greybox"]
@@ -203,11 +211,11 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x**2)))
 
 
-def _with_ripple(F: np.ndarray, pos: np.ndarray, w: float) -> np.ndarray:
+def _with_ripple(F: np.ndarray, pos: np.ndarray, step: np.ndarray, w: float) -> np.ndarray:
     G = F.copy()
     known = np.isfinite(pos)
-    G[:, 6] = np.where(known, np.sin(w * np.where(known, pos, 0.0)), 0.0)
-    G[:, 7] = np.where(known, np.cos(w * np.where(known, pos, 0.0)), 0.0)
+    cols = ripple_columns(np.where(known, pos, 0.0), step, w)
+    G[:, 6:8] = np.where(known[:, None], cols, 0.0)
     return G
 
 
@@ -230,6 +238,7 @@ def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarr
         return 0.0
     every = max(1, F.shape[0] // _SEARCH_ROWS)
     A, x, rr = F[::every, :6], np.where(known, pos, 0.0)[::every], r[::every]
+    dxs = step[::every]
     on = known[::every]
     scale = np.sqrt(np.mean(A**2, axis=0))
     live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
@@ -237,7 +246,7 @@ def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarr
     G00, b0, r2 = A.T @ A, A.T @ rr, float(rr @ rr)
 
     def sse(w: float) -> float:
-        S = np.stack([np.sin(w * x) * on, np.cos(w * x) * on], axis=1)
+        S = ripple_columns(x, dxs, w) * on[:, None]
         G = np.block([[G00, A.T @ S], [S.T @ A, S.T @ S]])
         b = np.concatenate([b0, S.T @ rr])
         G[np.diag_indices_from(G)] += _RIDGE * max(float(np.trace(G)) / len(G), 1e-300)
@@ -296,7 +305,9 @@ def _axis_fit(row: dict, linear: bool = True):
 def _ripple_columns(row: dict, Fo: np.ndarray, w: float) -> np.ndarray:
     """``Fo`` with the ripple columns at ``w``, run through the model like the others."""
     b, a = row["tf"]
-    G = _through_model(_with_ripple(row["F"], row["pos"], w)[:, 6:], row["starts"], b, a)
+    G = _through_model(
+        _with_ripple(row["F"], row["pos"], row["step"], w)[:, 6:], row["starts"], b, a
+    )
     return np.concatenate([Fo[:, :6], G], axis=1)
 
 
