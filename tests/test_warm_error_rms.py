@@ -193,3 +193,49 @@ def test_a_stored_signal_known_exact_is_kept_whole(noisy_library):
     assert ws.choices == ("stored",) and ws.weights == (1.0,) and ws.predicted == (0.0,)
     # exact up to the rounding the terms' inverse amplifies: ~eps / dt^3 = 3e-8 here
     assert np.allclose(ws.u, p.signal, rtol=0, atol=1e-7 * np.max(np.abs(p.signal)))
+
+
+def test_the_model_error_leaves_out_what_the_inverse_leaves_of_the_path():
+    # pairs the machine itself made (y = G u, u with steps): the model is exact, yet its
+    # inverse leaves out the band of the sampling zeros, so its cross-validated error on
+    # these paths is that gap; the mismatch the warm start predicts from is ~0
+    from primlib.greybox import fit_greybox
+    from primlib.pipeline._greywarm import bank_pairs, model_error
+
+    # a 12 ms lag makes a second sampling zero the inverse cannot take (-0.99 and -0.2)
+    lagged = Machine("xyz", XYZ.dt, XYZ.axes,
+                     {a: (n, np.convolve(d, [0.012, 1.0])) for a, (n, d) in XYZ.plants.items()})  # fmt: skip
+    rng = np.random.default_rng(4)
+    with Library() as lib:
+        lib.add_machine(lagged)
+        for k in range(4):
+            u = np.repeat(rng.standard_normal((12, 3)), 25, axis=0)
+            y = lagged.simulate(u)
+            lib.add(Trajectory.from_samples(y, XYZ.dt), u, "xyz", name=f"p{k}", error_rms=0.0)
+        bank = lib.bank("xyz")
+        gb = fit_greybox(lagged, bank_pairs(bank), linear=False)
+        gap = np.sqrt(np.sum(gb.gap_pairs**2, axis=1))
+        cv = np.sqrt(np.sum(gb.cv_pairs**2, axis=1))
+        assert np.all(gap > 1e-3 * np.max(np.abs(bank.points)))
+        # the terms may take a little of the gap (it has structure), never add to it
+        assert np.all(cv <= gap * (1 + 1e-6)) and np.all(cv > 0.5 * gap)
+        assert model_error(gb, bank) < 1e-3 * np.min(gap)
+        p = bank_pairs(bank)[0]
+        np.testing.assert_allclose(np.sqrt(np.mean(gb.inverse_gap(p.y) ** 2, axis=0)),
+                                   gb.gap_pairs[0])  # fmt: skip
+
+
+def test_the_share_never_makes_the_mix_worse_than_the_model_while_the_bounds_hold():
+    # w of the bounds (recorded error x ERROR_SPREAD, the model's error as small as that
+    # leaves it) is at most the true least-error share, where the mix is below the model
+    from primlib.pipeline._greywarm import ERROR_SPREAD, _weight
+
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        s_true, m_true = 10 ** rng.uniform(-6, -2, 2)
+        recorded = s_true / rng.uniform(1.0, ERROR_SPREAD)  # understated by at most the spread
+        r2 = m_true**2 + s_true**2  # the cross-validated residual holds both
+        m_lo = np.sqrt(max(r2 - (ERROR_SPREAD * recorded) ** 2, 0.0))
+        w = _weight(False, ERROR_SPREAD * recorded, m_lo)
+        mix = np.hypot((1 - w) * m_true, w * s_true)
+        assert mix <= m_true * (1 + 1e-12)

@@ -103,6 +103,9 @@ class GreyBox:
         Per pair given to :func:`fit_greybox` (in that order) and axis, the RMS of the
         cross-validated output error over that pair's samples; NaN for a pair the fit left
         out (beyond its row budget).
+    gap_pairs : array, shape (k, d) or None
+        Per pair and axis the RMS of :meth:`inverse_gap` on that pair's path: the part of
+        ``cv_pairs`` no coefficient can change (NaN for a pair left out).
     """
 
     machine: Machine
@@ -115,6 +118,22 @@ class GreyBox:
     n_samples: int
     notes: tuple[str, ...] = field(default_factory=tuple)
     cv_pairs: np.ndarray | None = None
+    gap_pairs: np.ndarray | None = None
+
+    def inverse_gap(self, y: np.ndarray, u_lin: np.ndarray | None = None) -> np.ndarray:
+        """What the linear model's own inverse leaves of the path ``y``, shape (n, d):
+        ``G G^-1 y - y`` on the model.
+
+        The inverse leaves out the band its sampling zeros would amplify
+        (:func:`primlib.plant.invert`), so on a path with content there every input built
+        on it -- the model-only input -- misses that content by this much even where the
+        model is the machine. It depends on the path, not on the fit.
+        """
+        y = np.asarray(y, dtype=float)
+        if u_lin is None:
+            u_lin = _model_inverse(self.machine, y)
+        ref = y if self.machine.feedback else None
+        return self.machine.simulate(u_lin, reference=ref) - y
 
     def terms(
         self, y: np.ndarray, origin: Any = None, u_lin: np.ndarray | None = None
@@ -438,4 +457,8 @@ def fit_greybox(machine: Machine, pairs: Sequence[Pair], *, linear: bool = True)
         cv[i] = _rms(err)
         per_pair[used, i] = np.sqrt(np.add.reduceat(err**2, starts[:-1]) / np.diff(starts))
     n = sum(p.u.shape[0] for p in pairs)
-    return GreyBox(machine, coef, w, speed, cv, cv_lin, rms0, n, tuple(notes), per_pair)
+    gb = GreyBox(machine, coef, w, speed, cv, cv_lin, rms0, n, tuple(notes), per_pair)
+    gaps = np.full((len(given), d), np.nan)
+    for j, p in zip(used, pairs, strict=True):
+        gaps[j] = np.sqrt(np.mean(gb.inverse_gap(p.y) ** 2, axis=0))
+    return replace(gb, gap_pairs=gaps)

@@ -40,6 +40,11 @@ __all__ = [
 
 _NONLINEAR_TERMS = [TERMS.index(t) for t in NONLINEAR + POSITION]
 _IN_PLACE_TOL = 1e-6  # rotation, time scale: |R - I|, |k - 1| below this is "not transformed"
+# How far a recorded error_rms may understate the true error: the trial learner's estimate was
+# 0.7-1.25x the truth on benchmarks/bench_realism.py's libraries (noise, friction, ripple,
+# resonance), so the truth is at most 1/0.7 = 1.43x the estimate; the shares use this bound
+# (:func:`_weight`).
+ERROR_SPREAD = 1.5
 
 
 def bank_origins(bank: Bank) -> np.ndarray:
@@ -108,37 +113,45 @@ def stored_errors(bank: Bank) -> dict[int, float]:
     return {int(i): float(e) for i, e in zip(bank.ids, _known_errors(bank), strict=True)}
 
 
-def model_error(gb: GreyBox, bank: Bank) -> float:
-    """The model-only input's predicted RMS output error (Euclidean over the axes).
+def model_error(gb: GreyBox, bank: Bank, spread: float = 1.0) -> float:
+    """The model-only input's predicted RMS output error (Euclidean over the axes) from what
+    the model gets wrong, the gap its inverse leaves aside.
 
     The grey-box model's cross-validated output error compares the model's response to each
-    stored input with the stored path, so on each primitive it also holds the error that
-    primitive's input left on the machine (noise that ILC learned into it, mostly):
-    r_i^2 = m_i^2 + e_i^2, two independent parts. The model-only input makes only the
-    first: per primitive max(r_i^2 - e_i^2, 0) (its recorded ``error_rms`` e_i; nothing
-    subtracted where the library knows none), averaged over the samples.
+    stored input with the stored path, so on each primitive it holds three independent
+    parts: what the model gets wrong about the machine (m_i), what the linear model's own
+    inverse leaves of that path (g_i, ``GreyBox.gap_pairs``: a property of the path, which
+    a new path has its own of), and the error that primitive's input left on the machine
+    (noise that ILC learned into it, mostly: its recorded ``error_rms`` e_i; none where the
+    library knows none): r_i^2 = m_i^2 + g_i^2 + e_i^2. This is max(r_i^2 - g_i^2 - e_i^2,
+    0) averaged over the samples. With ``spread`` > 1 each e_i is taken ``spread`` times
+    larger: a lower bound where the recorded errors understate the truth by at most that
+    factor.
     """
-    counts = np.diff(np.asarray(bank.offsets)).astype(float)
-    errors = _known_errors(bank)
     rows = _paired(bank)
-    if gb.cv_pairs is None or gb.cv_pairs.shape[0] != rows.size:  # not fitted on this bank
-        own = float(np.sum(counts * errors**2) / max(np.sum(counts), 1.0))
-        return float(np.sqrt(max(float(np.sum(gb.cv_rms**2)) - own, 0.0)))
+    counts = np.diff(np.asarray(bank.offsets)).astype(float)[rows]
+    errors = spread * _known_errors(bank)[rows]
     r2 = np.sum(gb.cv_pairs**2, axis=1)
+    g2 = np.sum(gb.gap_pairs**2, axis=1) if gb.gap_pairs is not None else np.zeros_like(r2)
     fitted = np.isfinite(r2)
-    n = counts[rows][fitted]
-    m2 = np.maximum(r2[fitted] - errors[rows][fitted] ** 2, 0.0)
+    n = counts[fitted]
+    m2 = np.maximum(r2[fitted] - g2[fitted] - errors[fitted] ** 2, 0.0)
     return float(np.sqrt(np.sum(n * m2) / max(np.sum(n), 1.0)))
 
 
 def _weight(transformed: bool, stored_err: float, model_err: float) -> float:
-    """The stored signal's share of a segment's input (1 stored, 0 model).
+    """The stored signal's share of a segment's input (1 stored, 0 model), from an upper
+    bound on the stored signal's error and a lower bound on the model's.
 
-    In place or translated both predictions estimate independent errors of the same needed
-    input (the stored signal's: what it left where it ran; the model's: what it misses), so
-    the least-error mix weighs each by the other's variance, m^2 / (s^2 + m^2), whose error
-    s m / sqrt(s^2 + m^2) is below both. Rotated or time-scaled, the stored prediction is a
-    bound, not an estimate: the lower one is kept whole (a tie keeps the stored signal).
+    In place or translated both estimate independent errors of the same needed input (the
+    stored signal's: what it left where it ran; the model's: what it misses), so the mix
+    w u_s + (1 - w) u_m leaves (1 - w)^2 m^2 + w^2 s^2, least at w* = m^2 / (s^2 + m^2) and
+    below m^2 for every w in [0, 2 w*]. The estimates are uncertain (where learned noise
+    dominates, r_l^2 - s_l^2 is a small difference of large numbers), so the share is w* of
+    the bounds -- never above the true w*, so the mix never does worse than the model-only
+    input while the bounds hold. Rotated or time-scaled, the stored prediction is a bound,
+    not an estimate: the stored signal is kept whole only where its bound is at most the
+    model's (a tie keeps it).
     """
     if not np.isfinite(stored_err):
         return 0.0
@@ -155,20 +168,26 @@ def choose_per_segment(
     sample_segment: np.ndarray,
     u_stored: np.ndarray,
     u_model: np.ndarray,
+    gap: np.ndarray | None = None,
 ) -> tuple[np.ndarray, tuple[str, ...], tuple[tuple[float, float], ...], tuple[float, ...]]:
     """Per segment the stored signal, the model-only input or their mix, by predicted error.
 
     Predicted RMS output errors (Euclidean over the axes): the model-only input's is
-    :func:`model_error`. The stored signal's, in place or translated, is the error its
-    primitive's input left where it ran (``error_rms``; a translation moves every term the
-    model has and the rest of the stored input is carried exactly). A rotated or time-scaled
-    piece carries by superposition the part of the stored input the model does not explain:
-    right if that part is linear, so on a machine where the fit found no friction and no
-    ripple its prediction is the larger of the model's and its own; where the fit found
-    them, the unexplained part is likely of their kind and does not transform, so the
-    prediction is what the linear model alone misses (``rms_nominal``), or its own error if
-    larger. An unmatched segment has only the model. The shares are :func:`_weight`'s; where
-    they change between segments the inputs are blended over a band of ``BAND_SAMPLES``.
+    sqrt(m^2 + g^2), m the model's mismatch (:func:`model_error`) and g the segment's RMS
+    of ``gap`` (:meth:`GreyBox.inverse_gap` of the new path, shape (n, d); None: none). The
+    stored signal's, in place or translated, is the error its primitive's input left where
+    it ran (``error_rms``; a translation moves every term the model has and the rest of the
+    stored input is carried exactly). A rotated or time-scaled piece carries by
+    superposition the part of the stored input the model does not explain: right if that
+    part is linear, so on a machine where the fit found no friction and no ripple its
+    prediction is the larger of the model's mismatch (not the gap: the stored signal
+    learned that band) and its own; where the fit found them, the unexplained part is likely
+    of their kind and does not transform, so the prediction is what the linear model alone
+    misses (``rms_nominal``), or its own error if larger. An unmatched segment has only the
+    model. The shares are :func:`_weight`'s of bounds: the recorded errors taken
+    :data:`ERROR_SPREAD` times larger and the mismatch ``model_error(gb, bank,
+    ERROR_SPREAD)`` then left; where the shares change between segments the inputs are
+    blended over a band of ``BAND_SAMPLES``.
 
     Returns
     -------
@@ -181,25 +200,33 @@ def choose_per_segment(
     weights : tuple of float
         Per segment the stored signal's share.
     """
-    model_err = model_error(gb, bank)
+    mismatch = model_error(gb, bank)
+    mismatch_lo = model_error(gb, bank, ERROR_SPREAD)
+    gap2 = np.zeros(u_model.shape[0]) if gap is None else np.sum(gap**2, axis=1)
     own = stored_errors(bank)
     # what a transformed stored signal may carry wrongly: on a machine the data show to be
     # linear what the model misses (superposition goes through it); where the model needed
     # nonlinear terms, up to all the linear model alone misses
     nonlinear = bool(np.any(gb.coef[:, _NONLINEAR_TERMS] != 0))
-    transformed_err = float(np.sqrt(np.sum(gb.rms_nominal**2))) if nonlinear else model_err
+    lin_err = float(np.sqrt(np.sum(gb.rms_nominal**2)))
     weight = np.zeros(u_model.shape[0])
     choices, predicted, shares = [], [], []
     for j, seg in enumerate(segments):
-        stored_err, moved = np.inf, _transformed(seg)
+        on = sample_segment == j
+        g2 = float(np.mean(gap2[on])) if np.any(on) else 0.0
+        model_err, model_lo = np.sqrt(mismatch**2 + g2), np.sqrt(mismatch_lo**2 + g2)
+        stored_err, stored_hi, moved = np.inf, np.inf, _transformed(seg)
         if seg.primitive is not None:
             e = own.get(int(seg.primitive), 0.0)
-            stored_err = max(e, transformed_err) if moved else e
-        share = _weight(moved, stored_err, model_err)
+            stored_err, stored_hi = e, ERROR_SPREAD * e
+            if moved:  # superposition carries the model's mismatch, not its inverse's gap
+                stored_err = max(e, lin_err if nonlinear else mismatch)
+                stored_hi = max(stored_hi, lin_err if nonlinear else mismatch_lo)
+        share = _weight(moved, stored_hi, model_lo)
         choices.append("stored" if share == 1.0 else "model" if share == 0.0 else "blend")
         predicted.append((stored_err, model_err))
         shares.append(share)
-        weight[sample_segment == j] = share
+        weight[on] = share
     if np.ptp(weight) > 0:  # the share changes: over a band, like the splice's junctions
         ramp = np.hanning(BAND_SAMPLES + 2)[1:-1]
         weight = np.convolve(np.pad(weight, BAND_SAMPLES, mode="edge"), ramp / ramp.sum(), "same")

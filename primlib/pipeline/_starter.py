@@ -379,8 +379,9 @@ def _grey_result(res, m, match, model, gb, bank, ref, origin) -> WarmStart:
     u_lin, lin, non = gb.terms(ref, origin)
     model_u = u_lin + lin + non
     u, choices, predicted, shares = choose_per_segment(
-        gb, bank, res.segments, res.sample_segment, res.u + non, model_u
-    )
+        gb, bank, res.segments, res.sample_segment, res.u + non, model_u,
+        gb.inverse_gap(ref, u_lin),
+    )  # fmt: skip
     base = _warm_start_result(res, m, match, model)
     used = [
         _choice_text(c, p, w, seg)
