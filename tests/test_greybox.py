@@ -42,7 +42,7 @@ def test_ripple_pitch_and_amplitude_are_found(stage_fit):
     # ripple force C_c sin(w0 x) opposes the input: K u = ... + C_c sin(w0 x)
     amp = STAGE.motors["x"]["Cc"] / STAGE.motors["x"]["K"]
     # within 15 %: the fit weighs input errors by the tracking error they make (mostly low
-    # frequencies on this integrating axis), and the smooth Coulomb sign takes some of it
+    # frequencies on this integrating axis), and the Stribeck term takes some of it
     assert np.hypot(c["ripple_sin"], c["ripple_cos"]) == pytest.approx(amp, rel=0.15)
     assert c["coulomb"] + c["stribeck"] > 0  # friction opposes the motion: more input
 

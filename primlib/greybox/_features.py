@@ -5,7 +5,7 @@ act at the input (in input units): friction, a force ripple that depends on the 
 position, a constant disturbance. The input that makes the machine follow a path y is then
 
     u = G^-1 y + c_v v + c_a a + c_l (d/dt G^-1 y)                  (linear-model error)
-          + c_c tanh(v / v_c) + c_s sgn(v) exp(-|v| / v_s)         (Coulomb, Stribeck)
+          + c_c sgn(v) + c_s sgn(v) exp(-|v| / v_s)                 (Coulomb, Stribeck)
           + c_1 sin(w x) + c_2 cos(w x)                             (ripple, x absolute)
           + c_0                                                     (constant disturbance)
 
@@ -14,12 +14,15 @@ first line is exact for a wrong M (c_a) and B (c_v); c_l is the first-order term
 unmodelled lag (u(t + tau) = u + tau u'). Every term is linear in its coefficient, so given
 the ripple's spatial frequency w the fit is one least-squares problem (:mod:`._fit`).
 
-Velocity is the mean over the sample interval, ``(y[k+1] - y[k]) / dt``: the input held
-over [k, k+1] (ZOH) moves the axis against the friction of that interval, and the inverse
-``G^-1 y`` puts ``u[k]`` where ``y[k+1]`` responds to it. The Coulomb term is ``tanh`` of
-``v / v_c`` with ``v_c`` a small fraction of the axis's speed (a smooth sign: at rest the
-friction is whatever the other forces need, which no regressor can say, and a hard sign
-would put a step in the input wherever the sampled velocity changes sign).
+Each term is its mean over the sample interval: the input held over [k, k+1] (ZOH) meets
+the forces of that interval, and the inverse ``G^-1 y`` puts ``u[k]`` where ``y[k+1]``
+responds to it. Velocity is the interval's mean, ``(y[k+1] - y[k]) / dt``. The Coulomb
+term is the mean of ``sgn(v)`` with the velocity linear between its values at the samples
+(:func:`coulomb_column`): the whole force wherever the axis moves, however slowly, and the
+share of each sign in the interval where it reverses. (A ``tanh(v / v_c)`` smooth sign
+took less than the whole force below ``v_c``, and the fit made up for it with an invented
+Stribeck term.) At rest it is 0: the friction is then whatever the other forces need,
+which no regressor can say.
 
 The ripple is likewise its mean over the interval, the motion from ``x[k]`` to ``x[k+1]``
 taken uniform: ``sin(w x)`` averages to ``sinc(w dx / 2) sin(w (x[k] + dx / 2))`` with
