@@ -1,10 +1,10 @@
 """The candidate pool of the best-first search: distinct windows, best first, with ties.
 
-The pool is greedy suppression (:func:`suppress`: one window per basin) run on the ``cap``
-best-scoring windows of all (equal scores in order of the windows' keys, so the pool does
-not depend on the order windows are offered in). Near-duplicate primitives that differ only
-in speed profile tie on the window grid, so it keeps, besides the best ``n_best`` distinct
-windows, every window within ``tie_width`` of the best. Its
+Near-duplicate primitives that differ only in speed profile tie on the window grid, so the
+pool keeps, besides the best ``n_best`` distinct windows, every window within ``tie_width``
+of the best (at most ``cap``). A window is *distinct* when greedy suppression in order of
+score keeps it (:func:`suppress`: one window per basin); equal scores are taken in order of
+the windows' keys, so the pool does not depend on the order windows are offered in. Its
 :attr:`CandidatePool.combined` is the score no window at or above which can still enter:
 the best-first search stops when every unscored window's lower bound reaches it (or the
 gate), and the pool is then exactly what scoring every window would give.
@@ -126,28 +126,30 @@ class CandidatePool:
     def offer_arrays(self, score, prim, x0, x1, keys) -> None:
         """Add scored windows (each below the gate) as arrays, and update the thresholds.
 
-        Only the ``cap`` best-scoring windows offered so far are kept (equal scores in
-        order of their keys), and the suppression runs on those: the pool is what suppressing
-        the ``cap`` best windows of all gives, whatever order they come in.
+        The suppression runs on every window offered so far that can still matter (those
+        above :attr:`combined` cannot: they come after the whole pool in score order), not
+        on the pool kept so far: greedy suppression is not transitive (a window dropped for
+        overlapping a kept one comes back when a better newcomer suppresses that one).
         """
         self._count += len(keys)
         cols = [np.concatenate([c, np.asarray(v)]) for c, v in
                 zip(self._cols, (score, prim, x0, x1, keys), strict=True)]  # fmt: skip
-        order = np.lexsort((cols[4], cols[0]))[: self.cap]
-        cols = [c[order] for c in cols]
         sc, pr, a, b, ky = cols
-        kept = _suppressed_order(pr, a, b, np.arange(sc.size), self.cap)
+        order = np.lexsort((ky, sc))
+        kept = _suppressed_order(pr, a, b, order, self.cap)
         if kept:
             tie = sc[kept[0]] + self.tie_width
             kept = [i for j, i in enumerate(kept) if j < self.n_best or sc[i] < tie]
         tau = math.inf
         if len(kept) >= self.n_best:
             tau = max(float(sc[kept[self.n_best - 1]]), tie)
-        if sc.size == self.cap:
-            # a newcomer at or above the worst of the best cap windows never enters them
-            tau = min(tau, float(sc[-1]))
+        if len(kept) == self.cap:
+            tau = min(tau, float(sc[kept[-1]]))
         self.items = [Candidate(int(pr[i]), float(a[i]), float(b[i]), float(sc[i])) for i in kept]
         self.keys = ky[kept] if kept else np.zeros(0, dtype=np.int64)
         self.combined = tau
         self.threshold = min(self.gate, tau)
+        if math.isfinite(tau):
+            live = sc <= tau
+            cols = [c[live] for c in cols]
         self._cols = cols
