@@ -45,6 +45,7 @@ _IN_PLACE_TOL = 1e-6  # rotation, time scale: |R - I|, |k - 1| below this is "no
 # resonance), so the truth is at most 1/0.7 = 1.43x the estimate; the shares use this bound
 # (:func:`_weight`).
 ERROR_SPREAD = 1.5
+MIX_RATIO = 3.0  # a stored signal predicted this many times worse than the model is not mixed
 
 
 def bank_origins(bank: Bank) -> np.ndarray:
@@ -157,6 +158,11 @@ def _weight(transformed: bool, stored_err: float, model_err: float) -> float:
         return 0.0
     if transformed:
         return 1.0 if stored_err <= model_err else 0.0
+    if stored_err > MIX_RATIO * model_err:
+        # w* < 0.1 here: the mix would gain at most 10 % in power on average, while the
+        # realized cross term 2 w (1 - w) rho s m of two errors of a few independent samples
+        # (correlation rho) outweighs that gain once rho > m / (2 s), about 0.17: a coin toss
+        return 0.0
     total = stored_err**2 + model_err**2
     return 1.0 if total == 0.0 else model_err**2 / total
 
