@@ -203,8 +203,8 @@ def test_the_model_error_leaves_out_what_the_inverse_leaves_of_the_path():
     from primlib.pipeline._greywarm import bank_pairs, model_error
 
     # a 12 ms lag makes a second sampling zero the inverse cannot take (-0.99 and -0.2)
-    lagged = Machine("xyz", XYZ.dt, XYZ.axes,
-                     {a: (n, np.convolve(d, [0.012, 1.0])) for a, (n, d) in XYZ.plants.items()})  # fmt: skip
+    plants = {a: (n, np.convolve(d, [0.012, 1.0])) for a, (n, d) in XYZ.plants.items()}
+    lagged = Machine("xyz", XYZ.dt, XYZ.axes, plants)
     rng = np.random.default_rng(4)
     with Library() as lib:
         lib.add_machine(lagged)
