@@ -12,7 +12,7 @@ from stage_helpers import stage_pair as _stage_pair
 
 from primlib import InputError
 from primlib.greybox import TERMS, Pair, fit_greybox
-from primlib.greybox._features import coulomb_column, ripple_columns
+from primlib.greybox._features import ripple_columns
 from primlib.plant import Machine, invert
 
 
@@ -42,7 +42,7 @@ def test_ripple_pitch_and_amplitude_are_found(stage_fit):
     # ripple force C_c sin(w0 x) opposes the input: K u = ... + C_c sin(w0 x)
     amp = STAGE.motors["x"]["Cc"] / STAGE.motors["x"]["K"]
     # within 15 %: the fit weighs input errors by the tracking error they make (mostly low
-    # frequencies on this integrating axis), and the Stribeck term takes some of it
+    # frequencies on this integrating axis), and the smooth Coulomb sign takes some of it
     assert np.hypot(c["ripple_sin"], c["ripple_cos"]) == pytest.approx(amp, rel=0.15)
     assert c["coulomb"] + c["stribeck"] > 0  # friction opposes the motion: more input
 
@@ -63,20 +63,6 @@ def test_the_inverse_follows_a_new_path_at_a_new_place(stage_fit):
     # the three parts add up to the inverse
     u_lin, lin, non = gb.terms(path, origin)
     assert np.allclose(u_lin + lin + non, gb.inverse(path, origin))
-
-
-def test_the_coulomb_column_is_the_mean_sign_over_each_interval():
-    dt = 0.01
-    y = np.sin(2 * np.pi * (np.arange(60) * dt + 0.003))  # reverses between samples 24, 25
-    col = coulomb_column(y, dt, speed=5.0)
-    v = np.gradient(y, dt)
-    s = np.linspace(0.0, 1.0, 20001)
-    for k in range(len(y) - 1):  # velocity linear between the samples' central differences
-        assert col[k] == pytest.approx(np.mean(np.sign(v[k] + (v[k + 1] - v[k]) * s)), abs=1e-3)
-    assert 0 < col[24] < 1 and np.all(np.abs(np.delete(col, 24)) == 1)
-    # an axis at rest, or still up to rounding, gets no Coulomb force at all
-    still = 40.0 + 1e-13 * np.random.default_rng(0).standard_normal(60)
-    assert np.all(coulomb_column(still, dt, speed=5.0) == 0)
 
 
 def test_the_ripple_columns_are_their_mean_over_each_interval():
