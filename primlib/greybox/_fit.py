@@ -348,7 +348,8 @@ def _cv_ripple(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int]) -> np
 
 def _stack(machine: Machine, pairs: Sequence[Pair]):
     """Per axis the rows of every pair: regressors (w = 0), input residual, absolute
-    position (NaN unknown), step per sample, CV fold, where each pair starts, the model."""
+    position (NaN unknown), step per sample, CV fold, where each pair starts, the model;
+    and each pair's linear-model inverse."""
     d = machine.dim
     u_lins = [_model_inverse(machine, p.y) for p in pairs]
     vel = [np.diff(p.y, axis=0) / machine.dt for p in pairs]
@@ -377,7 +378,7 @@ def _stack(machine: Machine, pairs: Sequence[Pair]):
         num_u, _, den = loops[i]
         rows.append(dict(zip(("F", "r", "pos", "step", "folds"), cat, strict=True)))
         rows[-1].update(starts=starts, tf=(num_u, den))
-    return speed, rows
+    return speed, rows, u_lins
 
 
 def _checked_pairs(machine: Machine, pairs: Sequence[Pair]) -> list[Pair]:
@@ -441,7 +442,7 @@ def fit_greybox(machine: Machine, pairs: Sequence[Pair], *, linear: bool = True)
     given = _checked_pairs(machine, pairs)
     used = _thin(given)
     pairs = [given[i] for i in used]
-    speed, rows = _stack(machine, pairs)
+    speed, rows, u_lins = _stack(machine, pairs)
     d = machine.dim
     coef = np.zeros((d, len(TERMS)))
     w, cv, cv_lin, rms0 = np.zeros(d), np.zeros(d), np.zeros(d), np.zeros(d)
@@ -459,6 +460,6 @@ def fit_greybox(machine: Machine, pairs: Sequence[Pair], *, linear: bool = True)
     n = sum(p.u.shape[0] for p in pairs)
     gb = GreyBox(machine, coef, w, speed, cv, cv_lin, rms0, n, tuple(notes), per_pair)
     gaps = np.full((len(given), d), np.nan)
-    for j, p in zip(used, pairs, strict=True):
-        gaps[j] = np.sqrt(np.mean(gb.inverse_gap(p.y) ** 2, axis=0))
+    for j, p, ul in zip(used, pairs, u_lins, strict=True):
+        gaps[j] = np.sqrt(np.mean(gb.inverse_gap(p.y, ul) ** 2, axis=0))
     return replace(gb, gap_pairs=gaps)
