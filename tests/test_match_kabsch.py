@@ -247,3 +247,38 @@ def test_rmsd_from_moments_equals_kabsch_on_degenerate_pieces(seed, n, kind, noi
     energy = ((pc**2).sum() + (qc**2).sum()) / n
     e = 64 * 2.2e-16 * size
     assert abs(fast**2 - slow**2) <= 1e-13 * energy + 2 * slow * e + e * e
+
+
+@pytest.mark.parametrize("bend", [0.0, 1e-9, 1e-6, 1e-3, 1e-2, 0.1])
+@pytest.mark.parametrize("mirror", [False, True])
+def test_deflated_lambda_max_equals_horn_eigenvalue_on_nearly_straight_pieces(bend, mirror):
+    # nearly straight pieces: the quartic's top root is (nearly) double, Newton's method
+    # resolves it to √u only; the deflation must give eigvalsh's accuracy wherever it claims it
+    from primlib.match._kabsch import _deflated_lambda_max, _horn_matrix
+
+    rng = np.random.default_rng(3)
+    s = np.linspace(-1.0, 1.0, 40)[:, None]
+    p = np.stack([s[:, 0], bend * s[:, 0] ** 2, 0.3 * bend * s[:, 0] ** 3], axis=1)
+    pieces = []
+    for _ in range(50):
+        q = p @ Rotation.random(random_state=int(rng.integers(2**31))).as_matrix().T
+        q = q + 1e-3 * bend * rng.normal(size=q.shape)
+        if mirror:
+            q = q * np.array([1.0, 1.0, -1.0])
+        pc, qc = p - p.mean(axis=0), q - q.mean(axis=0)
+        pieces.append(pc.T @ qc * rng.uniform(0.01, 100.0))
+    m = np.stack(pieces)
+    lam, good = _deflated_lambda_max(m)
+    top = np.linalg.eigvalsh(_horn_matrix(m))[:, -1]
+    assert good.mean() > 0.9  # the dominant singular value is far from the others
+    np.testing.assert_allclose(lam[good], top[good], rtol=1e-14)
+
+
+def test_deflated_lambda_max_leaves_degenerate_cases_to_newton():
+    # S = 0 (a point) and σ₁ = σ₂ (a circle against itself) have no dominant singular pair
+    from primlib.match._kabsch import _deflated_lambda_max
+
+    t = np.linspace(0.0, 2.0 * np.pi, 60, endpoint=False)
+    c = np.stack([np.cos(t), np.sin(t), np.zeros_like(t)], axis=1)
+    _, good = _deflated_lambda_max(np.stack([np.zeros((3, 3)), c.T @ c]))
+    assert not good.any()

@@ -14,7 +14,9 @@ pieces P̃, Q̃ and the cross-covariance S = P̃ᵀ Q̃ (d × d),
 and ``max_R tr(R S) = σ₁ + σ₂ + sign(det S) σ₃`` over proper rotations (σ the singular
 values of S), which is also the largest eigenvalue of Horn's 4 × 4 quaternion matrix. For
 the many-candidate searches we only need (2), never R: :func:`rmsd_from_moments` gets the
-eigenvalue by Newton's method on its characteristic polynomial (Theobald's QCP, 2005). Eq. (2)
+eigenvalue by deflating S's dominant singular pair (:func:`_deflated_lambda_max`; most pieces
+are nearly straight, where the quartic's top root is nearly double) or else by Newton's
+method on its characteristic polynomial (Theobald's QCP, 2005). Eq. (2)
 resolves an RMSD down to about 1e-8 of the pieces' size (round-off in the difference); taking
 σ₃ as the square root of an eigenvalue of SᵀS would lose it already at 1e-4, which matters
 for planar pieces (σ₃ ≈ 0). :func:`kabsch` forms R by SVD for the few winners.
@@ -294,6 +296,56 @@ def _horn_matrix(s: np.ndarray) -> np.ndarray:
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
+def _basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors b1, b2 making (n, b1, b2) a proper orthonormal basis, for unit vectors n
+    of shape (3, m) (Duff et al., J. Comput. Graph. Tech. 6 (2017) 1: no division by zero)."""
+    x, y, z = n
+    sg = np.where(z >= 0, 1.0, -1.0)
+    a = -1.0 / (sg + z)
+    b = x * y * a
+    return np.stack([1.0 + sg * x * x * a, sg * b, -sg * x]), np.stack([b, sg + y * y * a, -y])
+
+
+def _deflated_lambda_max(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """max tr(R S) over SO(3) for S (m, 3, 3) with a dominant singular value, and where the
+    result is as accurate as ``eigvalsh`` of Horn's matrix (a few ulps of σ₁).
+
+    Two power steps on SᵀS from S's largest row give v ≈ v₁, u = Sv/|Sv|; completed to
+    proper bases U = [u u₁ u₂], V = [v v₁ v₂] (:func:`_basis`), M = UᵀSV = [[a, c], [r, B]]
+    has the same max tr(R M) as S (R ↦ V R Uᵀ maps SO(3) onto itself), r = 0 up to
+    round-off, a = |Sv|, and the block-diagonal part's is a + max over 2-D rotations of
+    tr(R₂ B) = a + hypot(b₀₀ + b₁₁, b₀₁ − b₁₀). In Horn's matrix N(M) the rotations about
+    the first axis span an invariant pair of the block-diagonal part, holding its top two
+    eigenvalues (≥ a − √2‖B‖) apart from the other two (≤ −a + √2‖B‖); the off-diagonal
+    blocks of M only couple the two pairs (tr(R E) = 0 for those rotations), so by the
+    block-perturbation bound they move λ_max by at most ‖N(E)‖²/gap ≤ 4‖E‖²/(2(a − √2‖B‖))
+    (‖N(E)‖_F = 2‖E‖_F). Rows where that is at most 1e-15·λ are marked good; the others
+    (σ₂ close to σ₁, or σ₁ = 0) are left to :func:`_qcp_lambda_max`. Where the quartic's
+    top root is nearly double (σ₂, σ₃ ≪ σ₁: straight or nearly straight pieces, the most
+    common windows of a smooth path) this is where Newton's method cannot resolve it.
+    """
+    t = np.ascontiguousarray(s.transpose(1, 2, 0))  # t[a, b] = S_ab, shape (3, 3, m)
+    tt = np.ascontiguousarray(s.transpose(2, 1, 0))  # Sᵀ
+    v = np.take_along_axis(t, np.argmax((t * t).sum(axis=1), axis=0)[None, None], axis=0)[0]
+    for _ in range(2):
+        v = (tt * (t * v).sum(axis=1)).sum(axis=1)
+        v /= np.maximum(np.sqrt((v * v).sum(axis=0)), 1e-300)
+    sv = (t * v).sum(axis=1)
+    a = np.sqrt((sv * sv).sum(axis=0))
+    u = sv / np.maximum(a, 1e-300)
+    v1, v2 = _basis(v)
+    u1, u2 = _basis(u)
+    w = (tt * u).sum(axis=1)  # Sᵀu: c = (w·v₁, w·v₂)
+    sv1, sv2 = (t * v1).sum(axis=1), (t * v2).sum(axis=1)
+    b00, b01 = (u1 * sv1).sum(axis=0), (u1 * sv2).sum(axis=0)
+    b10, b11 = (u2 * sv1).sum(axis=0), (u2 * sv2).sum(axis=0)
+    lam = a + np.hypot(b00 + b11, b01 - b10)
+    off2 = (w * v1).sum(axis=0) ** 2 + (w * v2).sum(axis=0) ** 2
+    off2 += (u1 * sv).sum(axis=0) ** 2 + (u2 * sv).sum(axis=0) ** 2
+    sep = a - np.sqrt(2.0 * (b00 * b00 + b01 * b01 + b10 * b10 + b11 * b11))
+    return lam, (sep > 0) & (2.0 * off2 <= 1e-15 * lam * sep)
+
+
 def _qcp_lambda_max(s: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Largest eigenvalue of Horn's quaternion matrix for S (m, 3, 3) = max tr(R S) over SO(3).
 
@@ -368,5 +420,8 @@ def rmsd_from_moments(
         elif d == 2:
             best = np.hypot(s[:, 0, 0] + s[:, 1, 1], s[:, 0, 1] - s[:, 1, 0])
         else:
-            best = _qcp_lambda_max(s, 0.5 * total)
+            best, good = _deflated_lambda_max(s)
+            if not np.all(good):
+                rest = ~good
+                best[rest] = _qcp_lambda_max(s[rest], 0.5 * np.asarray(total)[rest])
     return np.sqrt(np.maximum(total - 2.0 * best, 0.0) / n)
