@@ -13,7 +13,7 @@ bundled library <= 1 s, against 1,000 primitives <= 2 s; ``rotation none`` and t
 1-1 never slower than the default; 2,400 -> 24,000 samples x12 or less (``--long``).
 
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400] [--big] [--long]
-[--baseline REV | --no-baseline]``.
+[--baseline REV | --no-baseline] [--cases default "rotation none" ...]``.
 """
 
 from __future__ import annotations
@@ -148,12 +148,19 @@ def main() -> None:
     ap.add_argument("--long", action="store_true", help="also 10x the samples (default only)")
     ap.add_argument("--baseline", default=BASELINE)
     ap.add_argument("--no-baseline", action="store_true")
+    ap.add_argument(
+        "--cases",
+        nargs="+",
+        choices=list(CASES),
+        default=list(CASES),
+        help="only these cases of the bundled library (all three by default)",
+    )
     args = ap.parse_args()
     if args.worker:
         print(json.dumps(worker(json.loads(args.worker))))
         return
     specs = [{"library": "bundled", "samples": args.samples, "paths": args.paths,
-              "cases": list(CASES)}]  # fmt: skip
+              "cases": args.cases}]  # fmt: skip
     if args.long:
         specs.append({"library": "bundled", "samples": 10 * args.samples, "paths": args.paths,
                       "cases": ["default"]})  # fmt: skip
