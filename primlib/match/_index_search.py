@@ -386,6 +386,7 @@ class IndexSearch:
             return pool
         head = np.arange(0, aq.n_windows, self.sample)
         head = head[gates.valid(head)]
+        head = head[self.in_range(aq, head)[0]]
         if head.size > self.first_batch:
             lbs = self.speed_bound(aq, head)
             head = np.sort(head[np.argpartition(lbs, self.first_batch - 1)[: self.first_batch]])
@@ -396,14 +397,15 @@ class IndexSearch:
         rest = rest[~seen[rest]]
         if rest.size == 0:
             return pool
-        if math.isfinite(pool.combined):
+        known = math.isfinite(pool.combined)
+        if known:
             lbs = self.speed_bound(aq, rest)
             keep = lbs < pool.combined
             rest, lbs = rest[keep], lbs[keep]
         else:
             # fewer than the pool's best few below the gate yet: the speed bound prunes
-            # nothing (a window below the gate enters whatever its speed profile); each
-            # batch bounds its own once the pool has a threshold
+            # nothing (a window below the gate enters whatever its speed profile); the
+            # drain bounds the rest once the pool has a threshold
             lbs = np.full(rest.size, -1.0)
         if rest.size > self.gather_fraction * aq.n_windows:
             lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
@@ -413,19 +415,50 @@ class IndexSearch:
         keep = (lb1 < gates.at(rest)) & (lbc < pool.combined)
         rest, lbs, lbc = rest[keep], lbs[keep], lbc[keep]
         self.stats.bounded += head.size + rest.size
-        order = np.argsort(lbc, kind="stable")
-        rest, lbs, lbc = rest[order], lbs[order], lbc[order]
-        pos, size = 0, self.first_batch
-        while pos < rest.size and lbc[pos] < pool.combined:
-            live = pos + np.flatnonzero(lbc[pos : pos + size] < pool.combined)
-            self._batch(aq, pool, rest[live], lbs[live], lbc[live], gates.at(rest[live]))
-            pos += size
-            size = min(2 * size, self.chunk)
+        self._drain(aq, gates, pool, rest, lbs, lbc, known)
         return pool
 
+    def _drain(self, aq: ArcQuery, gates: _Gates, pool: CandidatePool, rest: np.ndarray,
+               lbs: np.ndarray, lbc: np.ndarray, known: bool) -> None:  # fmt: skip
+        """Score windows ``rest`` in increasing order of their combined bounds ``lbc`` (the
+        shape bound alone unless ``known``: ``lbs`` then holds their speed bounds), batch by
+        batch, until every one left reaches the pool's threshold.
+
+        Each batch is the smallest of what is left (a partial selection: most windows are
+        never scored, and sorting them all cost more than scoring the few); the speed
+        bounds are added to every window left as soon as the pool has a threshold (a pool
+        filling late left a million windows ranked by their shape bound alone).
+        """
+        size = self.first_batch
+        while rest.size:
+            if not known and math.isfinite(pool.combined):
+                lbs = self.speed_bound(aq, rest)
+                lbc = np.hypot(lbc, np.maximum(lbs, 0.0))
+                known = True
+            live = lbc < pool.combined
+            if not live.all():
+                rest, lbs, lbc = rest[live], lbs[live], lbc[live]
+            if rest.size == 0:
+                return
+            if rest.size > size:
+                take = np.argpartition(lbc, size - 1)[:size]
+                take.sort()
+                left = np.ones(rest.size, dtype=bool)
+                left[take] = False
+            else:
+                take, left = np.arange(rest.size), None
+            ws = rest[take]
+            self._batch(aq, pool, ws, lbs[take], lbc[take], gates.at(ws))
+            if left is None:
+                return
+            rest, lbs, lbc = rest[left], lbs[left], lbc[left]
+            size = min(2 * size, self.chunk)
+
     def _screen(self, aq: ArcQuery, gates: _Gates, tau: float) -> np.ndarray:
-        """Every valid window whose 2-group speed bound is below ``tau``, by blocks of
-        windows (cache-sized temporaries); counts the valid windows."""
+        """Every valid window whose 2-group speed bound is below ``tau`` and whose time
+        scale is in range (:meth:`in_range`, which every window scored must pass: on a
+        short, nearly straight query it is the one test that sifts), by blocks of windows
+        (cache-sized temporaries); counts the valid windows."""
         out = []
         n = aq.n_windows
         for c0 in range(0, n, 1 << 14):
@@ -434,7 +467,8 @@ class IndexSearch:
             self.stats.windows += int(np.count_nonzero(ok))
             if math.isfinite(tau):
                 ok &= self.speed_screen(aq, (c0, c1), tau)
-            out.append(c0 + np.flatnonzero(ok))
+            ws = c0 + np.flatnonzero(ok)
+            out.append(ws[self.in_range(aq, ws)[0]])
         return np.concatenate(out)
 
     def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
