@@ -52,6 +52,18 @@ def test_sums_are_cached_on_the_index():
     a = idx.sums(0, 2)
     assert idx.sums(0, 2) is a
     np.testing.assert_array_equal(a[0], strided_prefix_sums(idx.levels[0].pts, 2)[0])
+    # without the products: the first rows of those already built
+    short = idx.sums(0, 2, products=False)
+    assert np.shares_memory(short[0], a[0]) and short[0].shape[0] == 4
+
+
+def test_sums_without_products_are_built_alone_and_cached():
+    idx = _index().arc_index()
+    short = idx.sums(1, 2, products=False)
+    assert idx.sums(1, 2, products=False) is short
+    full = idx.sums(1, 2)
+    np.testing.assert_array_equal(short[0], full[0][:4])
+    assert short[2] == full[2]
 
 
 def test_fine_index_is_built_once_and_capped():

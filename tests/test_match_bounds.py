@@ -15,6 +15,7 @@ from primlib.match._bounds import (
     half_window_bound,
     half_window_bound_fixed,
     principal_bound,
+    principal_bound_points,
     speed_bound,
     speed_screen,
     strided_cumsum,
@@ -83,10 +84,12 @@ def test_bounds_never_exceed_the_exact_rmsd_of_any_window(seed, d, k, dil, kind,
     rotations = ["full", "none"] + (["z"] if d == 3 else [])
     psum, pmax, radius = strided_prefix_sums(pts, dil)
     margin = half_bound_margin(k, d, pmax, radius) * np.sqrt(d)
+    lb4 = principal_bound_points(pts, np.arange(len(wins)), dil, QueryMoments.of(qc), radius)
     for rotation in rotations:
         exact = _exact(wins, qc, rotation)
         assert np.all(lb1 <= exact + scale), (rotation, np.max(lb1 - exact))
         assert np.all(lb2 <= exact + scale), (rotation, np.max(lb2 - exact))
+        assert np.all(lb4 <= exact + scale), (rotation, np.max(lb4 - exact))
         if rotation != "full":
             # the restricted families' own bound: at or above the rotation-invariant one
             # (up to its wider round-off margin)
@@ -127,6 +130,12 @@ def test_bounds_are_not_vacuous():
     exact = _exact(_windows(pts, 16, 2), qc, "full")
     assert np.median(lb1 / exact) > 0.3
     assert np.median(lb2 / exact) > 0.3
+    # from the gathered points: the same bound, with a smaller round-off margin
+    wins = _windows(pts, 16, 2)
+    radius = float(np.linalg.norm(pts, axis=1).max())
+    lb4 = principal_bound_points(pts, np.arange(len(wins)), 2, QueryMoments.of(qc), radius)
+    assert np.all(lb4 >= lb2 - 1e-9 * (1.0 + np.abs(lb2)))
+    np.testing.assert_allclose(lb4, lb2, rtol=1e-3, atol=1e-3 * np.abs(lb2).max())
 
 
 @pytest.mark.parametrize("dil", [1, 2, 4])
@@ -144,6 +153,11 @@ def test_prefix_sums_give_every_window_sum(dil):
     np.testing.assert_allclose(s[5], (wins[..., 0] * wins[..., 1]).sum(axis=1), atol=1e-12)
     assert radius == pytest.approx(np.linalg.norm(pts, axis=1).max())
     assert np.all(pmax >= np.abs(psum).max(axis=1))
+    # without the products: the coordinates' and |p|²'s rows alone, the same values
+    short, smax, sradius = strided_prefix_sums(pts, dil, products=False)
+    np.testing.assert_array_equal(short, psum[:4])
+    np.testing.assert_array_equal(smax, pmax[:4])
+    assert sradius == radius
 
 
 @settings(max_examples=40, deadline=None)

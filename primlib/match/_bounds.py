@@ -15,8 +15,10 @@ p_a·p_b (:func:`strided_prefix_sums`), so no window is gathered:
   δ1 + δ2 ≥ |D(P) − D(Q)| and min k1δ1² + k2δ2² = k1k2/K·ΔD². Hence
   rmsd² ≥ (k1k2/K·ΔD² + Σ_h k_h Δg_h²)/K.
 * :func:`principal_bound` (the survivors): the principal values of the windows' scatter
-  matrices. von Neumann's trace inequality, tr(R P̃ᵀQ̃) ≤ Σ s_i(P̃) s_i(Q̃) for any orthogonal
-  R, gives rmsd² ≥ Σ (s_i(P̃) − s_i(Q̃))² / K.
+  matrices (:func:`principal_bound_points`: the same from the survivors' gathered points,
+  so the prefix sums need no products for the rotation-invariant search). von Neumann's
+  trace inequality, tr(R P̃ᵀQ̃) ≤ Σ s_i(P̃) s_i(Q̃) for any orthogonal R, gives
+  rmsd² ≥ Σ (s_i(P̃) − s_i(Q̃))² / K.
 
 A third bound is on the other term of the search's score, ℓ·RMS(τ_w − τ_q) (the normalised
 time at the arc samples, combined with the shape RMSD in quadrature):
@@ -45,6 +47,7 @@ __all__ = [
     "half_window_bound_fixed",
     "half_bound_margin",
     "principal_bound",
+    "principal_bound_points",
     "gyration_bound",
     "sym_eigvals",
     "strided_cumsum",
@@ -60,24 +63,29 @@ def _pairs(d: int) -> list[tuple[int, int]]:
     return [(a, b) for a in range(d) for b in range(a, d)]
 
 
-def strided_prefix_sums(pts: np.ndarray, dil: int) -> tuple[np.ndarray, np.ndarray, float]:
+def strided_prefix_sums(pts: np.ndarray, dil: int,
+                        products: bool = True) -> tuple[np.ndarray, np.ndarray, float]:  # fmt: skip
     """Prefix sums for the windows {m + i·dil, i < n}, m = 0, 1, ... of a point sequence.
 
-    Rows: the d coordinates, |p|², then the products p_a·p_b (a ≤ b), so the sums, the
-    centroid, the radius of gyration and the scatter matrix of any window come from two
-    columns: Σ_{i<n} f(p_{m+i·dil}) = P[:, m + n·dil] − P[:, m] (P[:, m] sums the earlier
-    points of m's phase m mod dil).
+    Rows: the d coordinates, |p|², then (with ``products``) the products p_a·p_b (a ≤ b),
+    so the sums, the centroid, the radius of gyration and the scatter matrix of any window
+    come from two columns: Σ_{i<n} f(p_{m+i·dil}) = P[:, m + n·dil] − P[:, m] (P[:, m] sums
+    the earlier points of m's phase m mod dil).
 
     Parameters
     ----------
     pts : array, shape (M, d)
     dil : int
         Stride between a window's points, >= 1.
+    products : bool
+        Also the products' rows (the per-axis bounds of :func:`half_window_bound_fixed`
+        and :func:`principal_bound` need them; :func:`half_window_bound` does not).
 
     Returns
     -------
     P : array, shape (c, L)
-        c = d + 1 + d(d + 1)/2 rows, L = (⌈M/dil⌉ + 1)·dil columns.
+        c = d + 1 + d(d + 1)/2 rows (d + 1 without ``products``), L = (⌈M/dil⌉ + 1)·dil
+        columns.
     pmax : array, shape (c,)
         max |P| per row (for the round-off margins).
     radius : float
@@ -85,7 +93,7 @@ def strided_prefix_sums(pts: np.ndarray, dil: int) -> tuple[np.ndarray, np.ndarr
     """
     m, d = pts.shape
     rows = -(-m // dil)
-    pairs = _pairs(d)
+    pairs = _pairs(d) if products else []
     buf = np.zeros((d + 1 + len(pairs), rows + 1, dil))
     flat = buf.reshape(buf.shape[0], -1)
     coords = flat[:d, dil : dil + m]
@@ -93,9 +101,15 @@ def strided_prefix_sums(pts: np.ndarray, dil: int) -> tuple[np.ndarray, np.ndarr
     for i, (a, b) in enumerate(pairs):
         np.multiply(coords[a], coords[b], out=flat[d + 1 + i, dil : dil + m])
     energy = flat[d, dil : dil + m]
-    for i, (a, b) in enumerate(pairs):
-        if a == b:
-            energy += flat[d + 1 + i, dil : dil + m]
+    if products:
+        for i, (a, b) in enumerate(pairs):
+            if a == b:
+                energy += flat[d + 1 + i, dil : dil + m]
+    else:
+        sq = np.empty(m)
+        for a in range(d):  # the same sum, in the same order, as from the products' rows
+            np.multiply(coords[a], coords[a], out=sq)
+            energy += sq
     radius = math.sqrt(float(flat[d].max())) if m else 0.0
     np.cumsum(buf, axis=1, out=buf)
     return flat, np.maximum(flat.max(axis=1), -flat.min(axis=1)), radius
@@ -325,7 +339,8 @@ def principal_bound(
     pmax: np.ndarray,
     radius: float,
 ) -> np.ndarray:
-    """The principal-value lower bound of the windows starting at ``starts`` (module notes).
+    """The principal-value lower bound of the windows starting at ``starts`` (module notes),
+    from the prefix sums' scatter matrices.
 
     Round-off: Weyl moves each eigenvalue by ≤ ‖E‖ (the scatter's error in Frobenius norm,
     plus the closed form's 1e-7·trace), and |√a − √b| ≤ √|a − b|.
@@ -342,11 +357,42 @@ def principal_bound(
         v = s[d + 1 + i] - s[a] * s[b] * (1.0 / k)
         scat[:, a, b] = v
         scat[:, b, a] = v
-    sv_p = np.sqrt(np.maximum(sym_eigvals(scat), 0.0))
-    tr = np.maximum(s[d] - np.einsum("ij,ij->j", s[:d], s[:d]) * (1.0 / k), 0.0)
     err_c = (k + 2) * _U * float(pmax[:d].max())
     err_pp = (k + 2) * _U * float(pmax[d + 1 :].max())
     err_m = d * (err_pp + 2 * radius * err_c + err_c * err_c / k)  # ‖E‖_F of a scatter
+    return _principal(scat, query, err_m)
+
+
+def principal_bound_points(
+    pts: np.ndarray, starts: np.ndarray, dil: int, query: QueryMoments, radius: float
+) -> np.ndarray:
+    """:func:`principal_bound` of the windows starting at ``starts`` from their points
+    (gathered and centred: no prefix sums of products needed, and a smaller round-off).
+
+    Round-off: a centred coordinate errs by ≤ (k + 2)·u·r (r = ``radius`` ≥ max |p|) and is
+    at most 2r; a scatter entry, a sum of k products, by ≤ 8·k·(k + 2)·u·r², so
+    ‖E‖_F ≤ 8·d·k·(k + 2)·u·r²; then as :func:`principal_bound`.
+
+    Returns
+    -------
+    array, shape (len(starts),)
+    """
+    k = query.k
+    d = query.principal.size
+    win = pts[starts[:, None] + np.arange(k) * dil]  # (m, k, d)
+    win -= win.mean(axis=1, keepdims=True)
+    scat = np.einsum("mka,mkb->mab", win, win)
+    err_m = 8.0 * d * k * (k + 2) * _U * radius * radius
+    return _principal(scat, query, err_m)
+
+
+def _principal(scat: np.ndarray, query: QueryMoments, err_m: float) -> np.ndarray:
+    """The principal-value bound from the windows' scatter matrices (m, d, d), lowered by
+    the margin of a scatter error ‖E‖_F ≤ ``err_m``."""
+    k = query.k
+    d = query.principal.size
+    sv_p = np.sqrt(np.maximum(sym_eigvals(scat), 0.0))
+    tr = np.maximum(np.trace(scat, axis1=1, axis2=2), 0.0)
     lb = np.sqrt(np.sum((sv_p - query.principal) ** 2, axis=1) / k)
     lb -= (
         np.sqrt(d * (err_m + 1e-7 * tr) / k) + query.principal_error + 1e-12 * (query.gyration + lb)

@@ -57,7 +57,7 @@ from primlib.match._bounds import (
     half_bound_margin,
     half_window_bound,
     half_window_bound_fixed,
-    principal_bound,
+    principal_bound_points,
     speed_bound,
     speed_screen,
 )
@@ -236,11 +236,11 @@ class IndexSearch:
     def first_bound(self, aq: ArcQuery, ws: np.ndarray | None = None) -> np.ndarray:
         """Half-window lower bound of the shape RMSD of every window, or of windows ``ws``
         (:mod:`._bounds`), the per-axis form when the rotation family is restricted."""
-        psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
+        rotation = self.opts.rotation
+        psum, pmax, radius = aq.index.sums(aq.jb, aq.dil, products=rotation != "full")
         d = aq.qc.shape[1]
         margin = half_bound_margin(aq.k, d, pmax, radius)
         n = aq.n_windows if ws is None else ws.size
-        rotation = self.opts.rotation
         if rotation == "full":
             return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws)
         # per-axis energies: each carries up to the total's error bound
@@ -249,9 +249,10 @@ class IndexSearch:
         )
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
-        """Principal-value lower bound of the shape RMSD of windows ``ws``."""
-        psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
-        return principal_bound(psum, ws, aq.dil, aq.moments, pmax, radius)
+        """Principal-value lower bound of the shape RMSD of windows ``ws`` (from their
+        points: few windows get this far)."""
+        radius = aq.index.sums(aq.jb, aq.dil, products=self.opts.rotation != "full")[2]
+        return principal_bound_points(aq.level.pts, ws, aq.dil, aq.moments, radius)
 
     def speed_bound(self, aq: ArcQuery, ws: np.ndarray | tuple[int, int],
                     parts: int = 4) -> np.ndarray:  # fmt: skip
