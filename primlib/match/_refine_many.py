@@ -40,7 +40,7 @@ def _det(a: np.ndarray) -> np.ndarray:
 
 
 class _Residuals:
-    """:class:`._refine._Residual` for m seeds: cost (m,), residual and R·dp (m, k, d)."""
+    """:class:`._refine._Residual` for m seeds: cost (m,), residual (m, k, d), dp/dx and R."""
 
     def __init__(self, bank: BankIndex, prim: np.ndarray, q: np.ndarray, rotation: str):
         self.bank, self.prim, self.rotation = bank, prim, rotation
@@ -64,12 +64,19 @@ class _Residuals:
         return r
 
     def __call__(self, rows: np.ndarray, z: np.ndarray):
+        """Cost (m,), residual (m, k, d), and the derivative along the curve and the
+        rotation (:meth:`turned` makes R·dp of them: only accepted steps need it)."""
         x = z[:, :1] + (z[:, 1:] - z[:, :1]) * self.s
         p, dp = cubic_rows(self.bank.points, self.start[rows], self.last[rows], x)
-        pc = p - p.mean(axis=1, keepdims=True)
+        pc = p - p.sum(axis=1, keepdims=True) / p.shape[1]  # the mean, without its wrapper
         r = self.rotations(np.einsum("mka,kb->mab", pc, self.qc))
         res = self.qc - pc @ r.transpose(0, 2, 1)
-        return np.einsum("mka,mka->m", res, res), res, dp @ r.transpose(0, 2, 1)
+        return np.einsum("mka,mka->m", res, res), res, dp, r
+
+    @staticmethod
+    def turned(dp: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """R·dp_j for each row: the derivative of the rotated curve (R held fixed)."""
+        return dp @ r.transpose(0, 2, 1)
 
     def normal_equations(self, res: np.ndarray, dpr: np.ndarray):
         """:meth:`._refine._Residual.normal_equations` for m seeds, from moments: the
@@ -222,12 +229,16 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
               first: bool, rtol: float = _GAIN) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """:func:`._refine._gauss_newton` for every row of z at once: the final z and costs."""
     m = z.shape[0]
-    rows = np.arange(m)
-    cost, res, dpr = resid(rows, z)
+    cost, res, dp, r = resid(np.arange(m), z)
     lam, budget = np.zeros(m), np.full(m, _BUDGET)
     gain, previous = np.zeros(m), np.zeros(m)
     run = cost >= stop
-    jtj, g = resid.normal_equations(res, dpr)
+    jtj, g = np.zeros((m, 2, 2)), np.zeros((m, 2))
+    if np.any(run) and not (first and np.any(cost < stop)):
+        # the linearisation only of the rows that will step (and no copies of the
+        # residuals kept: a row's normal equations are all its next step needs)
+        live = np.flatnonzero(run)
+        jtj[live], g[live] = resid.normal_equations(res[live], resid.turned(dp[live], r[live]))
     while np.any(run) and not (first and np.any(cost < stop)):
         act = np.flatnonzero(run)
         step = _steps(jtj[act], g[act], lam[act], z[act], cvec[act])
@@ -237,20 +248,23 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
         if act.size == 0:
             break
         nz = z[act] + step
-        ncost, nres, ndpr = resid(act, nz)
+        ncost, nres, ndp, nr = resid(act, nz)
         budget[act] -= 1
         better = ncost < cost[act]
         acc, rej = act[better], act[~better]
         moved = np.abs(step[better]).sum(axis=1)
         previous[acc], gain[acc] = gain[acc], cost[acc] - ncost[better]
         z[acc], cost[acc] = nz[better], ncost[better]
-        res[acc], dpr[acc] = nres[better], ndpr[better]
         lam[acc] = np.where(lam[acc] > 1e-6, lam[acc] / 10.0, 0.0)
         lam[rej] = np.maximum(lam[rej] * 10.0, 1e-4)
         run[rej[lam[rej] > 1e8]] = False
         done = (moved < _MOVED) | (gain[acc] < rtol * cost[acc]) | (cost[acc] < stop)
         run[acc[done | hopeless(cost[acc], gain[acc], previous[acc], give_up)]] = False
         run[budget <= 0] = False
-        if acc.size:
-            jtj[acc], g[acc] = resid.normal_equations(res[acc], dpr[acc])
+        on = better.copy()
+        on[better] = run[acc]  # accepted and still running: they step again
+        if np.any(on):
+            jtj[act[on]], g[act[on]] = resid.normal_equations(
+                nres[on], resid.turned(ndp[on], nr[on])
+            )
     return z, cost
