@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cubic_at", "cubic_rows", "linear_at"]
+__all__ = ["cubic_at", "cubic_rows"]
 
 
 def cubic_at(
@@ -81,13 +81,3 @@ def cubic_rows(points: np.ndarray, start: np.ndarray, last: np.ndarray, x: np.nd
     c2 = 2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
     c3 = 3.0 * (p1 - p2) + p3 - p0
     return p1 + 0.5 * f * (c1 + f * (c2 + f * c3)), 0.5 * (c1 + f * (2.0 * c2 + 3.0 * f * c3))
-
-
-def linear_at(points: np.ndarray, start: np.ndarray, count: np.ndarray, x: np.ndarray):
-    """Linear interpolation, same arguments as :func:`cubic_at` (cheap, for indexing)."""
-    count = np.asarray(count)
-    x = np.clip(np.asarray(x, dtype=float), 0.0, count - 1)
-    i = np.minimum(np.floor(x).astype(np.int64), count - 2)
-    f = (x - i)[:, None]
-    p1 = points[start + i]
-    return p1 + f * (points[start + i + 1] - p1)
