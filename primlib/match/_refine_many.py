@@ -40,16 +40,20 @@ def _det(a: np.ndarray) -> np.ndarray:
 
 
 class _Residuals:
-    """:class:`._refine._Residual` for m seeds: cost (m,), residual (m, k, d), dp/dx and R."""
+    """:class:`._refine._Residual` for m seeds: cost (m,), residual (m, d, k), dp/dx and R.
+
+    Pieces are laid out (m, d, k), each coordinate a contiguous run of the k points: what a
+    point's weights multiply then broadcasts along it (:func:`._interp.cubic_rows`)."""
 
     def __init__(self, bank: BankIndex, prim: np.ndarray, q: np.ndarray, rotation: str):
         self.bank, self.prim, self.rotation = bank, prim, rotation
         self.start = bank.offsets[prim][:, None]
         self.last = bank.offsets[prim + 1][:, None] - self.start - 1
         self.qc = q - q.mean(axis=0)
+        self.qt = np.ascontiguousarray(self.qc.T)  # (d, k)
         self.s = np.linspace(0.0, 1.0, q.shape[0])
         self.w = np.stack([1.0 - self.s, self.s], axis=1)  # ∂x/∂(x0, x1) at each point
-        self.ww = self.w[:, :, None] * self.w[:, None, :]
+        self.ww = (self.w[:, :, None] * self.w[:, None, :]).reshape(-1, 4)
 
     def rotations(self, h: np.ndarray) -> np.ndarray:
         m, d, _ = h.shape
@@ -64,44 +68,43 @@ class _Residuals:
         return r
 
     def __call__(self, rows: np.ndarray, z: np.ndarray):
-        """Cost (m,), residual (m, k, d), and the derivative along the curve and the
+        """Cost (m,), residual (m, d, k), and the derivative along the curve and the
         rotation (:meth:`turned` makes R·dp of them: only accepted steps need it)."""
         x = z[:, :1] + (z[:, 1:] - z[:, :1]) * self.s
         p, dp = cubic_rows(self.bank.points, self.start[rows], self.last[rows], x)
-        pc = p - p.sum(axis=1, keepdims=True) / p.shape[1]  # the mean, without its wrapper
-        r = self.rotations(np.einsum("mka,kb->mab", pc, self.qc))
-        res = self.qc - pc @ r.transpose(0, 2, 1)
-        return np.einsum("mka,mka->m", res, res), res, dp, r
+        pc = p - p.sum(axis=2, keepdims=True) / p.shape[2]  # the mean, without its wrapper
+        r = self.rotations(pc @ self.qc)
+        res = self.qt - (pc if self.rotation == "none" else r @ pc)
+        return np.einsum("mak,mak->m", res, res), res, dp, r
 
-    @staticmethod
-    def turned(dp: np.ndarray, r: np.ndarray) -> np.ndarray:
+    def turned(self, dp: np.ndarray, r: np.ndarray) -> np.ndarray:
         """R·dp_j for each row: the derivative of the rotated curve (R held fixed)."""
-        return dp @ r.transpose(0, 2, 1)
+        return dp if self.rotation == "none" else r @ dp
 
     def normal_equations(self, res: np.ndarray, dpr: np.ndarray):
         """:meth:`._refine._Residual.normal_equations` for m seeds, from moments: the
         Jacobian's columns are w_c(s_j)·R dp_j, centred; Jᵀr needs no centring (Σ r = 0),
         nor does the rotation coupling B = Σ u × J (Σ u = 0)."""
-        k = res.shape[1]
-        mom = dpr.transpose(0, 2, 1) @ self.w  # Σ_j w_c(j) R dp_j, (m, d, 2)
-        jtj = np.einsum("mk,kce->mce", np.einsum("mka,mka->mk", dpr, dpr), self.ww)
+        m, d, k = res.shape
+        mom = dpr @ self.w  # Σ_j w_c(j) R dp_j, (m, d, 2)
+        jtj = (np.einsum("mak,mak->mk", dpr, dpr) @ self.ww).reshape(m, 2, 2)
         jtj -= mom.transpose(0, 2, 1) @ mom / k
-        g = np.einsum("mka,mka->mk", dpr, res) @ self.w
+        g = np.einsum("mak,mak->mk", dpr, res) @ self.w
         red = jtj + 1e-9 * jtj * _EYE2
         if self.rotation == "none":
             return red, g
-        u = self.qc - res  # the rotated, centred primitive
-        if u.shape[2] == 3 and self.rotation == "full":
-            u0, u1, u2 = u[..., 0], u[..., 1], u[..., 2]
-            d0, d1, d2 = dpr[..., 0], dpr[..., 1], dpr[..., 2]
+        u = self.qt - res  # the rotated, centred primitive
+        if d == 3 and self.rotation == "full":
+            u0, u1, u2 = u[:, 0], u[:, 1], u[:, 2]
+            d0, d1, d2 = dpr[:, 0], dpr[:, 1], dpr[:, 2]
             cr = np.stack([u1 * d2 - u2 * d1, u2 * d0 - u0 * d2, u0 * d1 - u1 * d0], axis=1)
             b = (cr @ self.w).transpose(0, 2, 1)  # Σ_j w_c(j) u_j × R dp_j, (m, 2, 3)
-            uu = np.einsum("mka,mkb->mab", u, u)
+            uu = u @ u.transpose(0, 2, 1)
             tr = np.trace(uu, axis1=1, axis2=2)[:, None, None]
             inertia = (1.0 + 2e-12) * tr * _EYE3 - uu  # + 1e-12 of its trace: never singular
             return red - b @ np.linalg.solve(inertia, b.transpose(0, 2, 1)), g
-        b = (u[..., 0] * dpr[..., 1] - u[..., 1] * dpr[..., 0]) @ self.w  # (m, 2)
-        inertia = np.einsum("mka,mka->m", u[..., :2], u[..., :2])
+        b = (u[:, 0] * dpr[:, 1] - u[:, 1] * dpr[:, 0]) @ self.w  # (m, 2)
+        inertia = np.einsum("mak,mak->m", u[:, :2], u[:, :2])
         return red - b[:, :, None] * b[:, None, :] / np.maximum(inertia, 1e-300)[:, None, None], g
 
 
