@@ -268,22 +268,41 @@ class IndexSearch:
         csum = aq.index.x_sums(aq.jb, aq.dil)
         return speed_screen(csum, aq.level.x, block, aq.dil, aq.tau, aq.ell, tau)
 
-    def in_range(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Mask of windows ``ws`` whose time scale is in range, and their end sample index.
+    def in_range(self, aq: ArcQuery, ws: np.ndarray | tuple[int, int],
+                 keep: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Mask of windows ``ws`` (an index array, or a range (c0, c1)) whose time scale is
+        in range, and their end sample index (where ``keep``, when given for a range).
 
         A window's duration follows from its arc length (10 % slack: the refinement enforces
         the range exactly). The end lies ell / step level points on, in the same primitive
-        unless near its end.
+        unless near its end (then found from the arc, for the windows in ``keep`` alone).
         """
         lv = aq.level
-        e = ws + aq.ell / lv.step
-        i0 = np.minimum(np.floor(e).astype(np.int64), lv.pts.shape[0] - 2)
-        f = e - i0
-        inside = lv.prim[np.minimum(i0 + 1, lv.pts.shape[0] - 1)] == lv.prim[ws]
-        x_end = lv.x[i0] + f * (lv.x[i0 + 1] - lv.x[i0])
-        if not np.all(inside):
-            x_end[~inside] = aq.index.arc_to_sample(lv.garc[ws[~inside]] + aq.ell)
-        scale = (x_end - lv.x[ws]) / aq.duration
+        last = lv.pts.shape[0] - 2
+        r = aq.ell / lv.step
+        off = int(math.floor(r))
+        frac = r - off
+        if isinstance(ws, tuple) and ws[1] - 1 + off <= last:
+            c0, c1 = ws  # slices: the screen's blocks
+            x0 = lv.x[c0:c1]
+            xa, xb = lv.x[c0 + off : c1 + off], lv.x[c0 + off + 1 : c1 + off + 1]
+            inside = lv.prim[c0 + off + 1 : c1 + off + 1] == lv.prim[c0:c1]
+        else:
+            if isinstance(ws, tuple):
+                ws = np.arange(*ws)
+            i0 = ws + off
+            over = np.maximum(i0 - last, 0)  # past the level's last point: extrapolated
+            i0 -= over
+            frac = frac + over
+            x0, xa, xb = lv.x[ws], lv.x[i0], lv.x[i0 + 1]
+            inside = lv.prim[i0 + 1] == lv.prim[ws]
+        x_end = xa + frac * (xb - xa)
+        fix = ~inside if keep is None else keep & ~inside
+        if np.any(fix):
+            at = np.flatnonzero(fix)
+            start = at + ws[0] if isinstance(ws, tuple) else ws[at]
+            x_end[at] = aq.index.arc_to_sample(lv.garc[start] + aq.ell)
+        scale = (x_end - x0) / aq.duration
         lo, hi = self.opts.time_scale
         return (scale >= lo / 1.1) & (scale <= hi * 1.1), x_end
 
@@ -468,8 +487,8 @@ class IndexSearch:
             self.stats.windows += int(np.count_nonzero(ok))
             if math.isfinite(tau):
                 ok &= self.speed_screen(aq, (c0, c1), tau)
-            ws = c0 + np.flatnonzero(ok)
-            out.append(ws[self.in_range(aq, ws)[0]])
+            ok &= self.in_range(aq, (c0, c1), ok)[0]
+            out.append(c0 + np.flatnonzero(ok))
         return np.concatenate(out)
 
     def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
