@@ -269,13 +269,14 @@ class IndexSearch:
         return speed_screen(csum, aq.level.x, block, aq.dil, aq.tau, aq.ell, tau)
 
     def in_range(self, aq: ArcQuery, ws: np.ndarray | tuple[int, int],
-                 keep: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+                 screen: bool = False) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Mask of windows ``ws`` (an index array, or a range (c0, c1)) whose time scale is
-        in range, and their end sample index (where ``keep``, when given for a range).
+        in range, and their end sample index.
 
         A window's duration follows from its arc length (10 % slack: the refinement enforces
         the range exactly). The end lies ell / step level points on, in the same primitive
-        unless near its end (then found from the arc, for the windows in ``keep`` alone).
+        unless near its end (then found from the arc; with ``screen``, such windows are
+        kept instead, and their end left approximate).
         """
         lv = aq.level
         last = lv.pts.shape[0] - 2
@@ -297,7 +298,13 @@ class IndexSearch:
             x0, xa, xb = lv.x[ws], lv.x[i0], lv.x[i0 + 1]
             inside = lv.prim[i0 + 1] == lv.prim[ws]
         x_end = xa + frac * (xb - xa)
-        fix = ~inside if keep is None else keep & ~inside
+        if screen:
+            # the screen: a window whose end crosses its primitive's last level point (a few
+            # per block) stays, for the exact test of the batch that scores it
+            ok = (x_end - x0) / aq.duration
+            lo, hi = self.opts.time_scale
+            return ((ok >= lo / 1.1) & (ok <= hi * 1.1)) | ~inside, x_end
+        fix = ~inside
         if np.any(fix):
             at = np.flatnonzero(fix)
             start = at + ws[0] if isinstance(ws, tuple) else ws[at]
@@ -487,7 +494,7 @@ class IndexSearch:
             self.stats.windows += int(np.count_nonzero(ok))
             if math.isfinite(tau):
                 ok &= self.speed_screen(aq, (c0, c1), tau)
-            ok &= self.in_range(aq, (c0, c1), ok)[0]
+            ok &= self.in_range(aq, (c0, c1), screen=True)[0]
             out.append(c0 + np.flatnonzero(ok))
         return np.concatenate(out)
 
