@@ -47,6 +47,18 @@ def test_arc_to_sample_follows_the_line_at_constant_speed():
     np.testing.assert_allclose(x, (g - g[0]) / 90.0 * 2000, atol=1e-5)
 
 
+def test_arc_past_a_primitives_end_stays_at_its_last_sample():
+    bank = _index()
+    idx = bank.arc_index()
+    n0 = int(bank.offsets[1] - bank.offsets[0])
+    end = idx.end_arc[0]
+    past = end + np.array([0.0, 0.5, 1.0, 3.0]) * idx.step0
+    # without the primitive the arc axis runs into the gap before the next primitive,
+    # where the sample index falls back towards 0
+    assert np.all(np.diff(idx.arc_to_sample(past)) < 0)
+    np.testing.assert_array_equal(idx.arc_to_sample(past, np.zeros(4, dtype=int)), n0 - 1)
+
+
 def test_sums_are_cached_on_the_index():
     idx = _index().arc_index()
     a = idx.sums(0, 2)

@@ -50,9 +50,14 @@ class ArcIndex:
     garc_all: np.ndarray  # global arc coordinate of every stored sample
     smoothed: bool = False  # whether any primitive was smoothed (levels carry dev2)
     cache: dict = field(default_factory=dict, compare=False, repr=False)
+    end_arc: np.ndarray | None = None  # (k,) global arc coordinate of each last sample
 
-    def arc_to_sample(self, g: np.ndarray) -> np.ndarray:
-        """Fractional sample index at global arc coordinates g (linear between samples)."""
+    def arc_to_sample(self, g: np.ndarray, prim: np.ndarray | None = None) -> np.ndarray:
+        """Fractional sample index at global arc coordinates g (linear between samples);
+        with ``prim``, g is first clamped to the end of that primitive (past it the axis
+        crosses the gap to the next primitive, whose sample indices start again at 0)."""
+        if prim is not None and self.end_arc is not None:
+            g = np.minimum(g, self.end_arc[prim])
         i = np.clip(np.searchsorted(self.garc_all, g) - 1, 0, self.garc_all.size - 2)
         g0, g1 = self.garc_all[i], self.garc_all[i + 1]
         f = np.clip((g - g0) / np.where(g1 > g0, g1 - g0, 1.0), 0.0, 1.0)
@@ -150,7 +155,8 @@ class ArcIndex:
         garc = np.repeat(starts_arc + gap, n_lv0)
         garc += arc_local
         # not past a primitive's last sample (arc_local may overshoot its length by 1e-9)
-        g_end = np.repeat(g_samples[bank.offsets[1:] - 1], n_lv0)
+        end_arc = g_samples[bank.offsets[1:] - 1]
+        g_end = np.repeat(end_arc, n_lv0)
         np.minimum(garc, g_end, out=g_end)
         x = np.interp(g_end, g_samples, sample_idx)
         # the samples are linear in x between samples, and x in g: linear in g, one interp
@@ -178,7 +184,7 @@ class ArcIndex:
             dev2 = None if dev2 is None else dev2[sel]
             local = local[sel] >> 1
             lv += 1
-        return cls(step0, tuple(levels), sample_idx, g_samples, smoothed)
+        return cls(step0, tuple(levels), sample_idx, g_samples, smoothed, end_arc=end_arc)
 
 
 @dataclass(frozen=True)

@@ -308,7 +308,7 @@ class IndexSearch:
         if np.any(fix):
             at = np.flatnonzero(fix)
             start = at + ws[0] if isinstance(ws, tuple) else ws[at]
-            x_end[at] = aq.index.arc_to_sample(lv.garc[start] + aq.ell)
+            x_end[at] = aq.index.arc_to_sample(lv.garc[start] + aq.ell, lv.prim[start])
         scale = (x_end - x0) / aq.duration
         lo, hi = self.opts.time_scale
         return (scale >= lo / 1.1) & (scale <= hi * 1.1), x_end
@@ -539,7 +539,7 @@ class IndexSearch:
         r, x0 = r.reshape(base.size, -1), x0.reshape(base.size, -1)
         best = np.argmin(r, axis=1)
         g0 = aq.level.garc[pool.keys] + _SHIFTS[best] * aq.level.step
-        x_end = aq.index.arc_to_sample(g0 + aq.ell)
+        x_end = aq.index.arc_to_sample(g0 + aq.ell, aq.level.prim[pool.keys])
         kept = suppress(
             [
                 Candidate(c.prim, float(x0[i, best[i]]), float(x_end[i]), float(r[i, best[i]]))
