@@ -16,7 +16,7 @@ import numpy as np
 from primlib.match._interp import cubic_rows
 from primlib.match._kabsch import _rotation_2d
 from primlib.match._options import Candidate, PathPiece, SearchOptions
-from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, clamp, duration_range, hopeless
+from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, hopeless
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
@@ -121,23 +121,27 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
     """
     dur = (b - a) * path.duration
     out, rmsd = list(cands), np.full(len(cands), np.inf)
-    rows, z, cvec = [], [], []
-    for i, c in enumerate(cands):
-        n_p = int(bank.offsets[c.prim + 1] - bank.offsets[c.prim])
-        lo, hi = duration_range(n_p, dur / bank.dt, opts)
-        if hi < lo:
-            continue
-        c0 = clamp(bank, c, dur, opts)
-        rows.append(i)
-        z.append([c0.x0, c0.x1])
-        cvec.append([0.0, n_p - 1.0, -lo, hi])
-    if not rows:
+    if not cands:
         return out, rmsd
+    # duration_range and clamp of every candidate at once (the same operations)
+    prim = np.array([c.prim for c in cands])
+    n_p = bank.offsets[prim + 1] - bank.offsets[prim]
+    lo = np.maximum(opts.time_scale[0] * (dur / bank.dt), 1e-6)
+    hi = np.minimum(opts.time_scale[1] * (dur / bank.dt), n_p - 1.0)
+    rows = np.flatnonzero(hi >= lo)
+    if rows.size == 0:
+        return out, rmsd
+    prim, n_p, hi = prim[rows], n_p[rows], hi[rows]
+    lo = np.broadcast_to(lo, hi.shape)
+    x0 = np.array([cands[i].x0 for i in rows])
+    span = np.minimum(np.maximum(np.array([cands[i].x1 for i in rows]) - x0, lo), hi)
+    x0 = np.minimum(np.maximum(x0, 0.0), n_p - 1.0 - span)
+    z = np.stack([x0, x0 + span], axis=1)
+    cvec = np.stack([np.zeros_like(hi), n_p - 1.0, -lo, hi], axis=1)
     k = opts.refine_points if points is None else points
-    prim = np.array([cands[i].prim for i in rows])
     resid = _Residuals(bank, prim, path.at(np.linspace(a, b, k)), opts.rotation)
-    zf, cost = _lockstep(resid, np.array(z), np.array(cvec), target * target * k,
-                         give_up * give_up * k, first, rtol)  # fmt: skip
+    zf, cost = _lockstep(resid, z, cvec, target * target * k, give_up * give_up * k, first,
+                         rtol)  # fmt: skip
     for j, i in enumerate(rows):
         out[i] = Candidate(cands[i].prim, float(zf[j, 0]), float(zf[j, 1]), cands[i].score)
     rmsd[rows] = np.sqrt(np.maximum(cost, 0.0) / k)
@@ -163,13 +167,15 @@ def _steps(jtj, g, lam, z, cvec):
     """Damped Gauss–Newton steps under A z ≤ c: the free 2×2 solution where feasible, the
     box QP of :func:`._refine.solve_box_qp2` elsewhere (in closed form for a fixed
     duration)."""
-    dg = jtj[:, [0, 1], [0, 1]]
-    h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * np.eye(2)
+    dg = np.diagonal(jtj, axis1=1, axis2=2)
+    h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * _EYE2
     det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
     free = _free_step(h, g, det)
     slack = cvec - z @ _AMAT.T
     ok = np.all(free @ _AMAT.T <= slack + 1e-9 * (1.0 + np.abs(cvec)), axis=1) & (det > 0)
     bad = np.flatnonzero(~ok)
+    if bad.size == 0:
+        return free  # the usual case: every free step is feasible
     # a fixed duration (time scale range of one value): the feasible set is the segment
     # x1 − x0 = lo, so the QP is one-dimensional along (1, 1), its minimiser clipped
     line = np.abs(cvec[bad, 2] + cvec[bad, 3]) <= 1e-12 * (1.0 + np.abs(cvec[bad, 3]))
