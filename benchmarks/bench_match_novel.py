@@ -13,7 +13,9 @@ bundled library <= 1 s, against 1,000 primitives <= 2 s; ``rotation none`` and t
 1-1 never slower than the default; 2,400 -> 24,000 samples x12 or less (``--long``).
 
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400] [--big] [--long]
-[--baseline REV | --no-baseline] [--cases default "rotation none" ...]``.
+[--baseline REV | --no-baseline] [--cases default "rotation none" ...] [--glyph-chain]``;
+``--glyph-chain`` times the cases on ``data/paths/glyph-chain.csv`` (the restricted
+searches of ``bench_match.py --restricted``) instead, beside the baseline.
 """
 
 from __future__ import annotations
@@ -69,6 +71,7 @@ def worker(spec: dict) -> dict:
     import numpy as np
 
     from primlib.match import BankIndex, default_eps, segment_path
+    from primlib.nurbs import Trajectory
 
     bank, dt = _library(spec["library"])
     out = {}
@@ -77,11 +80,16 @@ def worker(spec: dict) -> dict:
         times, segs, frac = [], [], []
         for seed in range(spec["paths"]):
             n = spec["samples"]
-            path = _walk(np.random.default_rng(100 + seed), n, dt, max(8, n // 200))
+            if spec.get("file"):  # one stored path, timed ``paths`` times
+                path = Trajectory.from_csv(ROOT / spec["file"])
+                n = int(round(path.duration / dt)) + 1
+            else:
+                path = _walk(np.random.default_rng(100 + seed), n, dt, max(8, n // 200))
             pts = path.at(np.linspace(0.0, 1.0, n))
+            out["samples"] = n
             index = BankIndex(bank)  # first call: the index is built inside
             t0 = time.perf_counter()
-            s, _ = segment_path(index, pts, dt, default_eps(path), **kw)
+            s, _ = segment_path(index, pts, path.duration / (n - 1), default_eps(path), **kw)
             times.append(time.perf_counter() - t0)
             segs.append([(round(x.end, 9), x.primitive) for x in s])
             frac.append(sum(x.end - x.start for x in s if x.primitive is not None))
@@ -122,8 +130,10 @@ def _compare(new: list, old: list, last: int) -> str:
 
 
 def _report(spec: dict, new: dict, old: dict | None) -> None:
-    print(f"\n{spec['library']} library, {spec['samples']:,} samples, {spec['paths']} paths "
-          "(first call, seconds)")  # fmt: skip
+    samples = new.get("samples", spec["samples"])
+    what = f"{spec['file']}, timed {spec['paths']} times" if spec.get("file") else (
+        f"{spec['paths']} paths")  # fmt: skip
+    print(f"\n{spec['library']} library, {samples:,} samples, {what} (first call, seconds)")
     print("| case | median | worst | segments (median) | matched | baseline median | ratio |")
     print("|---|---|---|---|---|---|---|")
     for label in spec["cases"]:
@@ -133,7 +143,7 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         if old is not None:
             b = statistics.median(old[label]["times"])
             base, ratio = f"{b:.2f}", f"{b / med:.1f}x"
-            base += _compare(r["segments"], old[label]["segments"], int(spec["samples"]) - 1)
+            base += _compare(r["segments"], old[label]["segments"], int(samples) - 1)
         nseg = statistics.median(len(s) for s in r["segments"])
         print(f"| {label} | {med:.2f} | {max(r['times']):.2f} | {nseg:g} | "
               f"{100 * statistics.median(r['fraction']):.0f} % | {base} | {ratio} |")  # fmt: skip
@@ -155,6 +165,12 @@ def main() -> None:
         default=list(CASES),
         help="only these cases of the bundled library (all three by default)",
     )
+    ap.add_argument(
+        "--glyph-chain",
+        action="store_true",
+        help="instead: data/paths/glyph-chain.csv (glyphs the library holds, rotated), the "
+        "cases timed --paths times",
+    )
     args = ap.parse_args()
     if args.worker:
         print(json.dumps(worker(json.loads(args.worker))))
@@ -164,6 +180,9 @@ def main() -> None:
     if args.long:
         specs.append({"library": "bundled", "samples": 10 * args.samples, "paths": args.paths,
                       "cases": ["default"]})  # fmt: skip
+    if args.glyph_chain:
+        specs = [{"library": "bundled", "samples": 0, "paths": args.paths, "cases": args.cases,
+                  "file": "data/paths/glyph-chain.csv"}]  # fmt: skip
     if args.big:
         specs.append({"library": "random-1000", "samples": args.samples, "paths": args.paths,
                       "cases": ["default"]})  # fmt: skip
