@@ -29,7 +29,9 @@ rotation-invariant one; ``--length 2400 24000 100000 [--baseline REV]`` instead 
 composed and novel paths of those lengths against the bundled library, each in its own
 process with its peak memory, the ratios to the first length beside the goals, and with
 ``--baseline`` the same paths matched by revision REV's primlib — ``_length_scaling.py``;
-``--index`` only the index row, on 1,000 random primitives).
+``--index`` only the index row, on 1,000 random primitives; ``--composed [--baseline REV]``
+only the composed path's first and warm calls at 1,000 primitives, this tree and revision
+REV (default main) alternated, each in its own process — ``_composed.py``).
 """
 
 from __future__ import annotations
@@ -51,12 +53,12 @@ from pathlib import Path  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from anywhere
 
 import numpy as np  # noqa: E402
+from _composed import EPS, PIECES, build_library, build_path, first_call  # noqa: E402
 from _index_persist import compare as index_read_vs_build  # noqa: E402
 from _length_scaling import bank_of  # noqa: E402
 from _length_scaling import run as run_length  # noqa: E402
 from _reference_search import reference_segment_path  # noqa: E402
 from _timing import median_time  # noqa: E402
-from scipy.spatial.transform import Rotation  # noqa: E402
 
 from primlib.match import BankIndex, kabsch, match_path, segment_path  # noqa: E402
 from primlib.match._options import PathPiece  # noqa: E402
@@ -65,66 +67,6 @@ from primlib.pipeline import Library  # noqa: E402
 from primlib.plant import Machine  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-N_SAMPLES = 2000
-EPS = 0.05
-# (primitive, start v, time scale k, samples of the new path) for the 5 pieces
-PIECES = [(0, 0.05, 0.6, 480), (1, 0.30, 0.8, 481), (2, 0.10, 1.0, 481), (3, 0.40, 1.3, 481),
-          (4, 0.20, 1.7, 481)]  # fmt: skip
-
-
-def random_primitive(rng: np.random.Generator, dt: float) -> Trajectory:
-    """A smooth random 3-D motion: clamped cubic B-spline, 24 control points, ~100 mm wide."""
-    m, p = 24, 3
-    ctrl = np.cumsum(rng.normal(size=(m, 3)) * 12.0, axis=0)
-    knots = np.concatenate([np.zeros(p), np.linspace(0.0, 1.0, m - p + 1), np.ones(p)])
-    return Trajectory.from_definition(p, knots, ctrl, None, (N_SAMPLES - 1) * dt)
-
-
-def build_library(k: int, machine: Machine, seed: int = 0, db: Path | None = None) -> Library:
-    """k random primitives (the first k of one seeded sequence), in memory or in ``db``."""
-    rng = np.random.default_rng(seed)
-    lib = Library(db)
-    lib.add_machine(machine)
-    zeros = np.zeros((N_SAMPLES, 3))
-    items = [(random_primitive(rng, machine.dt), zeros, f"r{i}", None) for i in range(k)]
-    lib.add_many(items, machine.name)
-    return lib
-
-
-def first_call(db: Path, machine: str, path: Trajectory, repeat: int = 3):
-    """Median time of the first ``match`` on a freshly opened library file (DuckDB read,
-    index build, segmentation) and of its bank read alone; the last Match."""
-    times, reads, mt = [], [], None
-    for _ in range(repeat):
-        with Library(db) as lb:
-            t0 = time.perf_counter()
-            mt = lb.match(path, machine=machine, eps=EPS)
-            times.append(time.perf_counter() - t0)
-        with Library(db) as lb:
-            t0 = time.perf_counter()
-            lb.bank(machine)
-            reads.append(time.perf_counter() - t0)
-    return statistics.median(times), statistics.median(reads), mt
-
-
-def build_path(lib: Library, machine: Machine, seed: int = 1):
-    """The 5 pieces, each rotated at random, joined end to start, fitted as one path."""
-    rng = np.random.default_rng(seed)
-    bank = lib.bank(machine.name)
-    dt = machine.dt
-    out, last = [], np.zeros(3)
-    truth = []
-    for row, v0, k, n in PIECES:
-        traj = bank.trajectory(row)
-        v1 = v0 + k * (n - 1) * dt / traj.duration
-        pts = traj.at(np.linspace(v0, v1, n))
-        pts = pts @ Rotation.random(random_state=int(rng.integers(2**31))).as_matrix().T
-        pts += last - pts[0]
-        last = pts[-1]
-        out.append(pts if not out else pts[1:])
-        truth.append(int(bank.ids[row]))
-    pts = np.concatenate(out)
-    return Trajectory.from_samples(pts, dt), truth
 
 
 def key(segments) -> list[tuple[float, int | None]]:
@@ -221,6 +163,42 @@ def _length_goal(n: int, grow: float, ratio: float, r: dict) -> str:
     return "; ".join(parts) or "-"
 
 
+def composed(baseline: str, rounds: int = 2) -> None:
+    """``--composed``: the composed path's first call (median of 3 fresh opens) and warm
+    call (median of 5) against 1,000 primitives, this tree and revision ``baseline``
+    alternated ``rounds`` times, each in its own process (``_composed.py``); the medians
+    over the rounds, the ratio, and whether both cut the same segments (asserted)."""
+    import json
+
+    spec = json.dumps({"k": 1000, "first": 3, "warm": 5, "root": str(ROOT)})
+    worker = str(Path(__file__).resolve().parent / "_composed.py")
+    res: dict[str, list[dict]] = {"this tree": [], baseline: []}
+    with tempfile.TemporaryDirectory(prefix="bench_composed_base_") as folder:
+        tar = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "primlib"],
+                             capture_output=True, check=True).stdout  # fmt: skip
+        subprocess.run(["tar", "-x", "-C", folder], input=tar, check=True)
+        trees = {"this tree": str(ROOT), baseline: folder}
+        for r in range(rounds):
+            for label in list(trees) if r % 2 == 0 else list(trees)[::-1]:
+                env = dict(os.environ, PYTHONPATH=trees[label], OMP_NUM_THREADS="1",
+                           OPENBLAS_NUM_THREADS="1")  # fmt: skip
+                out = subprocess.run([sys.executable, worker, "--worker", spec], env=env,
+                                     capture_output=True, text=True, check=True)  # fmt: skip
+                res[label].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    new, old = res["this tree"], res[baseline]
+    assert all(r["segments"] == new[0]["segments"] for r in new + old), "segments differ"
+    print(f"\ncomposed path, 1,000 primitives ({rounds} rounds alternated; baseline git "
+          f"revision {baseline})")  # fmt: skip
+    print("| call | this tree | baseline | ratio | goal |")
+    print("|---|---|---|---|---|")
+    for name, goal in (("first", 1.0), ("warm", 0.5)):
+        a = statistics.median(r[name] for r in new)
+        b = statistics.median(r[name] for r in old)
+        print(f"| {name} | {a:.3f} s | {b:.3f} s | {b / a:.2f}x | <= {goal} s: "
+              f"{'met' if a <= goal else 'NOT met'} |")  # fmt: skip
+    print(f"same segments: {len(new[0]['segments'])}, equal in every run")
+
+
 def index_persistence(bank, folder: Path, repeat: int = 5) -> tuple[float, float, float]:
     """Median seconds to build the 1,000 primitives' index and to read it from DuckDB."""
     r = index_read_vs_build(bank, folder / "index.duckdb", repeat)
@@ -252,7 +230,14 @@ def main() -> None:
     ap.add_argument(
         "--baseline",
         metavar="REV",
-        help="with --length: also run each path with git revision REV's primlib",
+        help="with --length: also run each path with git revision REV's primlib; with "
+        "--composed: the revision timed beside this tree (default main)",
+    )
+    ap.add_argument(
+        "--composed",
+        action="store_true",
+        help="only the composed path's first and warm calls at 1,000 primitives, this tree "
+        "and --baseline alternated",
     )
     ap.add_argument(
         "--index",
@@ -268,6 +253,11 @@ def main() -> None:
         return
     if args.restricted:
         restricted(machine)
+        return
+    if args.composed:
+        print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        composed(args.baseline or "main")
+        print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         return
     if args.length:
         with tempfile.TemporaryDirectory(prefix="bench_length_") as folder:
