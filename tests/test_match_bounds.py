@@ -223,6 +223,11 @@ def test_speed_bound_never_exceeds_the_exact_speed_term(seed, k, dil, parts, off
         kept = speed_screen(csum, x, (0, n), dil, tau_q, ell, limit)
         assert np.all(kept[two < limit]) and np.all(kept[exact < limit])
         assert not np.any(kept[two > limit * (1 + 1e-6) + 1e-9 * ell])
+        # the windows gathered by index: the same mask
+        some = np.flatnonzero(rng.random(n) < 0.3)
+        np.testing.assert_array_equal(
+            speed_screen(csum, x, some, dil, tau_q, ell, limit), kept[some]
+        )
 
 
 def test_speed_bound_is_not_vacuous_and_tightens_with_groups():

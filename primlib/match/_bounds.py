@@ -496,33 +496,45 @@ def speed_bound(
 def speed_screen(
     csum: tuple[np.ndarray, float, float],
     x: np.ndarray,
-    block: tuple[int, int],
+    block: tuple[int, int] | np.ndarray,
     dil: int,
     tau_q: np.ndarray,
     ell: float,
     limit: float,
     parts: int = 2,
 ) -> np.ndarray:
-    """Mask of the windows c0 <= m < c1 (``block``) whose :func:`speed_bound` is below
-    ``limit``, without its divisions and square roots: with D the window's duration and
-    h_G = D·(mean_G τ_w − mean_G τ_q), the bound is below the limit unless
+    """Mask of the windows c0 <= m < c1 (``block``), or of the windows starting at
+    ``block`` (an index array: gathered, for sparse survivors), whose :func:`speed_bound` is
+    below ``limit``, without its divisions and square roots: with D the window's duration
+    and h_G = D·(mean_G τ_w − mean_G τ_q), the bound is below the limit unless
     Σ_G |G|/K·h_G² >= (D·(limit/ℓ + 16u + 1e-12) + E)²·(1 + 1e-11), E the round-off
     term of :func:`speed_bound` times D; windows whose x does not advance are kept.
     """
     csum_, cmax, xmax = csum
-    c0, c1 = block
     k = tau_q.size
+    if isinstance(block, tuple):
+        c0, c1 = block
+        n = c1 - c0
+
+        def col(a, off):
+            return a[c0 + off : c1 + off]
+    else:
+        n = block.size
+
+        def col(a, off):
+            return a[block + off]
+
     inner = k - 2
     if inner <= 0 or not math.isfinite(limit):
-        return np.ones(c1 - c0, dtype=bool)
-    x0 = x[c0:c1]
-    xe = x[c0 + (k - 1) * dil : c1 + (k - 1) * dil]
+        return np.ones(n, dtype=bool)
+    x0 = col(x, 0)
+    xe = col(x, (k - 1) * dil)
     dur = xe - x0
     edges = 1 + np.round(np.linspace(0.0, inner, min(parts, inner) + 1)).astype(int)
-    acc = np.zeros(c1 - c0)
+    acc = np.zeros(n)
     for s, e in zip(edges[:-1], edges[1:], strict=True):
         mu = float(np.mean(tau_q[s:e]))
-        h = csum_[c0 + e * dil : c1 + e * dil] - csum_[c0 + s * dil : c1 + s * dil]
+        h = col(csum_, e * dil) - col(csum_, s * dil)
         h *= 1.0 / (e - s)
         h -= x0 * (1.0 - mu)
         h -= xe * mu

@@ -262,9 +262,10 @@ class IndexSearch:
         csum = aq.index.x_sums(aq.jb, aq.dil)
         return speed_bound(csum, aq.level.x, ws, aq.dil, aq.tau, aq.ell, parts)
 
-    def speed_screen(self, aq: ArcQuery, block: tuple[int, int], tau: float) -> np.ndarray:
-        """Mask of the windows in ``block`` whose speed bound with 2 groups is below ``tau``
-        (:func:`._bounds.speed_screen`)."""
+    def speed_screen(self, aq: ArcQuery, block: tuple[int, int] | np.ndarray,
+                     tau: float) -> np.ndarray:  # fmt: skip
+        """Mask of the windows in ``block`` (a range, or an index array) whose speed bound
+        with 2 groups is below ``tau`` (:func:`._bounds.speed_screen`)."""
         csum = aq.index.x_sums(aq.jb, aq.dil)
         return speed_screen(csum, aq.level.x, block, aq.dil, aq.tau, aq.ell, tau)
 
@@ -492,10 +493,16 @@ class IndexSearch:
             c1 = min(c0 + (1 << 14), n)
             ok = gates.valid((c0, c1))
             self.stats.windows += int(np.count_nonzero(ok))
-            if math.isfinite(tau):
-                ok &= self.speed_screen(aq, (c0, c1), tau)
             ok &= self.in_range(aq, (c0, c1), screen=True)[0]
-            out.append(c0 + np.flatnonzero(ok))
+            if not math.isfinite(tau):
+                out.append(c0 + np.flatnonzero(ok))
+            elif np.count_nonzero(ok) < self.gather_fraction * (c1 - c0):
+                # few in range: the speed test on them alone, gathered (the same values)
+                ws = c0 + np.flatnonzero(ok)
+                out.append(ws[self.speed_screen(aq, ws, tau)])
+            else:
+                ok &= self.speed_screen(aq, (c0, c1), tau)
+                out.append(c0 + np.flatnonzero(ok))
         return np.concatenate(out)
 
     def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
