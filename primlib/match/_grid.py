@@ -137,8 +137,8 @@ class GridSearch:
         out = np.full(starts.size, np.inf)
         self.stats.scored += live.size
         if live.size:
-            win = sliding_window_view(res_c, k, axis=0)[starts[live]]  # (m, d, k)
-            s = np.einsum("mak,kb->mab", win, qc, optimize=True)
+            win = sliding_window_view(res_c, k, axis=0)[starts[live]]  # (m, d, k), contiguous
+            s = win @ qc  # one (m·d, k) by (k, d) product: no copy, unlike einsum's reshape
             sp_l = sp[live]
             out[live] = rmsd_from_moments(s, sp_l, np.broadcast_to(sq, sp_l.shape), k, rotation)
         return out
