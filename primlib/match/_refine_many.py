@@ -73,8 +73,11 @@ class _Residuals:
         x = z[:, :1] + (z[:, 1:] - z[:, :1]) * self.s
         p, dp = cubic_rows(self.bank.points, self.start[rows], self.last[rows], x)
         pc = p - p.sum(axis=2, keepdims=True) / p.shape[2]  # the mean, without its wrapper
-        r = self.rotations(pc @ self.qc)
-        res = self.qt - (pc if self.rotation == "none" else r @ pc)
+        if self.rotation == "none":  # R = I: no product, and no rotation kept
+            r, res = np.empty((pc.shape[0], 0, 0)), self.qt - pc
+        else:
+            r = self.rotations(pc @ self.qc)
+            res = self.qt - r @ pc
         return np.einsum("mak,mak->m", res, res), res, dp, r
 
     def turned(self, dp: np.ndarray, r: np.ndarray) -> np.ndarray:
