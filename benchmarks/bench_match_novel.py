@@ -13,9 +13,11 @@ bundled library <= 1 s, against 1,000 primitives <= 2 s; ``rotation none`` and t
 1-1 never slower than the default; 2,400 -> 24,000 samples x12 or less (``--long``).
 
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400] [--big] [--long]
-[--baseline REV | --no-baseline] [--cases default "rotation none" ...] [--glyph-chain]``;
+[--baseline REV | --no-baseline] [--cases default "rotation none" ...] [--glyph-chain]
+[--shrink F]``;
 ``--glyph-chain`` times the cases on ``data/paths/glyph-chain.csv`` (the restricted
-searches of ``bench_match.py --restricted``) instead, beside the baseline.
+searches of ``bench_match.py --restricted``) instead, beside the baseline; ``--shrink 1e-6``
+scales the novel paths (and eps) down until they barely move against the primitives.
 """
 
 from __future__ import annotations
@@ -86,10 +88,14 @@ def worker(spec: dict) -> dict:
             else:
                 path = _walk(np.random.default_rng(100 + seed), n, dt, max(8, n // 200))
             pts = path.at(np.linspace(0.0, 1.0, n))
+            eps = default_eps(path)
+            if spec.get("shrink"):  # a path that barely moves: the same shape, scaled down
+                pts = pts.mean(axis=0) + (pts - pts.mean(axis=0)) * spec["shrink"]
+                eps *= spec["shrink"]
             out["samples"] = n
             index = BankIndex(bank)  # first call: the index is built inside
             t0 = time.perf_counter()
-            s, _ = segment_path(index, pts, path.duration / (n - 1), default_eps(path), **kw)
+            s, _ = segment_path(index, pts, path.duration / (n - 1), eps, **kw)
             times.append(time.perf_counter() - t0)
             segs.append([(round(x.end, 9), x.primitive) for x in s])
             frac.append(sum(x.end - x.start for x in s if x.primitive is not None))
@@ -133,6 +139,8 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
     samples = new.get("samples", spec["samples"])
     what = f"{spec['file']}, timed {spec['paths']} times" if spec.get("file") else (
         f"{spec['paths']} paths")  # fmt: skip
+    if spec.get("shrink"):
+        what += f" scaled by {spec['shrink']:g}"
     print(f"\n{spec['library']} library, {samples:,} samples, {what} (first call, seconds)")
     print("| case | median | worst | segments (median) | matched | baseline median | ratio |")
     print("|---|---|---|---|---|---|---|")
@@ -166,6 +174,12 @@ def main() -> None:
         help="only these cases of the bundled library (all three by default)",
     )
     ap.add_argument(
+        "--shrink",
+        type=float,
+        help="scale the novel paths about their centroid by this factor (and eps with "
+        "them): 1e-6 makes paths that barely move against the library's primitives",
+    )
+    ap.add_argument(
         "--glyph-chain",
         action="store_true",
         help="instead: data/paths/glyph-chain.csv (glyphs the library holds, rotated), the "
@@ -180,6 +194,8 @@ def main() -> None:
     if args.long:
         specs.append({"library": "bundled", "samples": 10 * args.samples, "paths": args.paths,
                       "cases": ["default"]})  # fmt: skip
+    if args.shrink:
+        specs[0]["shrink"] = args.shrink
     if args.glyph_chain:
         specs = [{"library": "bundled", "samples": 0, "paths": args.paths, "cases": args.cases,
                   "file": "data/paths/glyph-chain.csv"}]  # fmt: skip
