@@ -1,10 +1,11 @@
 """The refinement of :mod:`._refine` for several seeds at once (one probe's seeds), in
-lockstep: every evaluation gathers, superposes and linearises all the seeds still running
-in one set of array operations, so a failing probe costs one refinement's Python overhead
-instead of one per seed. Each seed follows exactly the steps :func:`._refine.refine` takes
-for it alone (same damping, budget and stopping rules, including giving up on a seed that
-will not end below ``give_up``); only round-off differs. With ``first``, every seed stops
-as soon as one is below ``target`` (a probe only needs one match).
+lockstep: every evaluation gathers and superposes all the seeds still running, and
+linearises those whose step was accepted and that go on, in one set of array operations, so
+a failing probe costs one refinement's Python overhead instead of one per seed. Each seed
+follows exactly the steps :func:`._refine.refine` takes for it alone (same damping, budget
+and stopping rules, including giving up on a seed that will not end below ``give_up``);
+only round-off differs. With ``first``, every seed stops as soon as one is below
+``target`` (a probe only needs one match).
 """
 
 from __future__ import annotations
