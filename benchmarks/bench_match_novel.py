@@ -7,8 +7,10 @@ Each case is timed as a first call (a fresh ``BankIndex``: the arc-length index 
 inside the call) on ``--paths`` paths: median and worst, segments, fraction matched. The
 baseline is the same measurement run, in the same session, by the code of git revision
 ``--baseline`` (extracted with ``git archive`` into a temporary folder, run in a
-subprocess): ratio = baseline time / this tree's time. Both must cut the same segments
-(asserted: the changes are meant to be exact). Goals (issue 13): 2,400 samples against the
+subprocess), path by path alternately with this tree's: ratio = baseline time / this tree's
+time, in wall-clock and in CPU seconds of the process (steadier on a shared machine). How
+the cuts and primitives differ from the baseline's is printed beside it (the changes are
+meant to be exact). Goals (issue 13): 2,400 samples against the
 bundled library <= 1 s, against 1,000 primitives <= 2 s; ``rotation none`` and time scale
 1-1 never slower than the default; 2,400 -> 24,000 samples x12 or less (``--long``).
 
@@ -79,8 +81,8 @@ def worker(spec: dict) -> dict:
     out = {}
     for label in spec["cases"]:
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in CASES[label].items()}
-        times, segs, frac = [], [], []
-        for seed in range(spec["paths"]):
+        times, cpu, segs, frac = [], [], [], []
+        for seed in spec.get("seeds", range(spec["paths"])):
             n = spec["samples"]
             if spec.get("file"):  # one stored path, timed ``paths`` times
                 path = Trajectory.from_csv(ROOT / spec["file"])
@@ -94,12 +96,13 @@ def worker(spec: dict) -> dict:
                 eps *= spec["shrink"]
             out["samples"] = n
             index = BankIndex(bank)  # first call: the index is built inside
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             s, _ = segment_path(index, pts, path.duration / (n - 1), eps, **kw)
             times.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
             segs.append([(round(x.end, 9), x.primitive) for x in s])
             frac.append(sum(x.end - x.start for x in s if x.primitive is not None))
-        out[label] = {"times": times, "segments": segs, "fraction": frac}
+        out[label] = {"times": times, "cpu": cpu, "segments": segs, "fraction": frac}
     return out
 
 
@@ -108,6 +111,16 @@ def _run(tree: Path, spec: dict) -> dict:
     res = subprocess.run([sys.executable, __file__, "--worker", json.dumps(spec)], env=env,
                          capture_output=True, text=True, check=True)  # fmt: skip
     return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def _merge(into: dict, more: dict) -> None:
+    """Append one worker's per-path lists to ``into`` (case by case)."""
+    for label, r in more.items():
+        if isinstance(r, dict):
+            for key, values in r.items():
+                into.setdefault(label, {}).setdefault(key, []).extend(values)
+        else:
+            into[label] = r
 
 
 def _baseline_tree(rev: str, tmp: str) -> Path:
@@ -142,19 +155,22 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
     if spec.get("shrink"):
         what += f" scaled by {spec['shrink']:g}"
     print(f"\n{spec['library']} library, {samples:,} samples, {what} (first call, seconds)")
-    print("| case | median | worst | segments (median) | matched | baseline median | ratio |")
-    print("|---|---|---|---|---|---|---|")
+    print("| case | median | CPU | worst | segments (median) | matched | baseline median | "
+          "baseline CPU | ratio | CPU ratio |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for label in spec["cases"]:
         r = new[label]
-        med = statistics.median(r["times"])
-        base, ratio = "-", "-"
+        med, cpu = statistics.median(r["times"]), statistics.median(r["cpu"])
+        base, base_cpu, ratio, cpu_ratio = "-", "-", "-", "-"
         if old is not None:
-            b = statistics.median(old[label]["times"])
-            base, ratio = f"{b:.2f}", f"{b / med:.1f}x"
+            b, bc = statistics.median(old[label]["times"]), statistics.median(old[label]["cpu"])
+            base, base_cpu = f"{b:.2f}", f"{bc:.2f}"
+            ratio, cpu_ratio = f"{b / med:.1f}x", f"{bc / cpu:.1f}x"
             base += _compare(r["segments"], old[label]["segments"], int(samples) - 1)
         nseg = statistics.median(len(s) for s in r["segments"])
-        print(f"| {label} | {med:.2f} | {max(r['times']):.2f} | {nseg:g} | "
-              f"{100 * statistics.median(r['fraction']):.0f} % | {base} | {ratio} |")  # fmt: skip
+        print(f"| {label} | {med:.2f} | {cpu:.2f} | {max(r['times']):.2f} | {nseg:g} | "
+              f"{100 * statistics.median(r['fraction']):.0f} % | {base} | {base_cpu} | {ratio} "
+              f"| {cpu_ratio} |")  # fmt: skip
 
 
 def main() -> None:
@@ -206,8 +222,14 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bench_novel_") as tmp:
         old_tree = None if args.no_baseline else _baseline_tree(args.baseline, tmp)
         for spec in specs:
-            new = _run(ROOT, spec)
-            old = None if old_tree is None else _run(old_tree, spec)
+            # path by path, this tree then the baseline: a shared machine's load then
+            # weighs on both alike
+            new, old = {}, None if old_tree is None else {}
+            for seed in range(spec["paths"]):
+                one = dict(spec, seeds=[seed])
+                _merge(new, _run(ROOT, one))
+                if old_tree is not None:
+                    _merge(old, _run(old_tree, one))
             _report(spec, new, old)
     print(f"\nbaseline: git revision {args.baseline}" if not args.no_baseline else "")
     print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
