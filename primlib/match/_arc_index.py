@@ -227,7 +227,9 @@ class ArcSamples:
         base index per sample (its step sets the gap)."""
         pts, dev = smooth_bank(points, offsets)
         counts = np.diff(offsets)
-        seg = np.empty(max(pts.shape[0] - 1, 0))
+        # one entry more than the steps (0): the per-primitive maxima need no appended copy
+        full = np.zeros(max(pts.shape[0], 1))
+        seg = full[: max(pts.shape[0] - 1, 0)]
         for c0 in range(0, seg.size, 1 << 16):  # chunks: no (N, d) temporary
             c1 = min(c0 + (1 << 16), seg.size)
             dif = pts[c0 + 1 : c1 + 1] - pts[c0:c1]
@@ -237,8 +239,8 @@ class ArcSamples:
         np.cumsum(seg, out=cum[1:])
         # the largest stored step per primitive (the envelopes' margin), when these are the
         # stored samples themselves
-        big = np.maximum.reduceat(np.append(seg, 0.0), offsets[:-1]) if pts is points else None
-        del seg
+        big = np.maximum.reduceat(full, offsets[:-1]) if pts is points else None
+        del seg, full
         starts = cum[offsets[:-1]]
         length = cum[offsets[1:] - 1] - starts
         total = float(length.sum())
