@@ -28,7 +28,7 @@ import pyarrow as pa
 
 from primlib.match import BankIndex
 
-__all__ = ["index_arrays", "write_index", "read_index", "compare"]
+__all__ = ["index_arrays", "write_index", "read_index", "compare", "build_seconds"]
 
 
 def index_arrays(index: BankIndex) -> dict[str, np.ndarray]:
@@ -105,3 +105,33 @@ def compare(bank, db: Path, repeat: int = 5) -> dict[str, float]:
         np.testing.assert_array_equal(back[k], np.asarray(v, dtype=float).ravel(), err_msg=k)
     mb = nbytes / 2**20
     return {"build": statistics.median(builds), "read": statistics.median(reads), "mb": mb}
+
+
+def build_seconds(repeat: int = 5, kind: str = "random-1000") -> float:
+    """Median seconds to build the 1,000 random primitives' (``kind``: or the bundled
+    library's) index and envelopes (a fresh
+    ``BankIndex``, ``arc_index()``, ``envelope()``) with the primlib on ``sys.path``: run as
+    ``python _index_persist.py --worker N`` under another revision's ``PYTHONPATH``, the
+    same build there (``bench_match.py --index --baseline REV``)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_match_novel import _library
+
+    bank, _ = _library(kind)
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        index = BankIndex(bank)
+        index.arc_index()
+        index.envelope()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+if __name__ == "__main__":
+    import json
+    import sys
+
+    if len(sys.argv) == 3 and sys.argv[1] == "--worker":
+        print(json.dumps(build_seconds(int(sys.argv[2]))))

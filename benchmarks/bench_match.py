@@ -29,7 +29,8 @@ rotation-invariant one; ``--length 2400 24000 100000 [--baseline REV]`` instead 
 composed and novel paths of those lengths against the bundled library, each in its own
 process with its peak memory, the ratios to the first length beside the goals, and with
 ``--baseline`` the same paths matched by revision REV's primlib — ``_length_scaling.py``;
-``--index`` only the index row, on 1,000 random primitives; ``--composed [--baseline REV]``
+``--index [--baseline REV]`` only the index row, on 1,000 random primitives (with the
+build also timed with revision REV); ``--composed [--baseline REV]``
 only the composed path's first and warm calls at 1,000 primitives, this tree and revision
 REV (default main) alternated, each in its own process — ``_composed.py``).
 """
@@ -199,6 +200,32 @@ def composed(baseline: str, rounds: int = 2) -> None:
     print(f"same segments: {len(new[0]['segments'])}, equal in every run")
 
 
+def index_build_baseline(baseline: str, rounds: int = 3) -> None:
+    """``--index --baseline REV``: the index build alone (``_index_persist.build_seconds``,
+    median of 5) with this tree and revision REV, alternated ``rounds`` times, each in its
+    own process."""
+    import json
+
+    worker = str(Path(__file__).resolve().parent / "_index_persist.py")
+    res: dict[str, list[float]] = {"this tree": [], baseline: []}
+    with tempfile.TemporaryDirectory(prefix="bench_index_base_") as folder:
+        tar = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "primlib"],
+                             capture_output=True, check=True).stdout  # fmt: skip
+        subprocess.run(["tar", "-x", "-C", folder], input=tar, check=True)
+        trees = {"this tree": str(ROOT), baseline: folder}
+        for r in range(rounds):
+            for label in list(trees) if r % 2 == 0 else list(trees)[::-1]:
+                env = dict(os.environ, PYTHONPATH=trees[label], OMP_NUM_THREADS="1",
+                           OPENBLAS_NUM_THREADS="1")  # fmt: skip
+                out = subprocess.run([sys.executable, worker, "--worker", "5"], env=env,
+                                     capture_output=True, text=True, check=True)  # fmt: skip
+                res[label].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    a, b = statistics.median(res["this tree"]), statistics.median(res[baseline])
+    print(f"index build alone (arc-length index + envelopes, 1,000 primitives; {rounds} rounds "
+          f"alternated): this tree {a:.3f} s, git revision {baseline} {b:.3f} s, "
+          f"{b / a:.2f}x")  # fmt: skip
+
+
 def index_persistence(bank, folder: Path, repeat: int = 5) -> tuple[float, float, float]:
     """Median seconds to build the 1,000 primitives' index and to read it from DuckDB."""
     r = index_read_vs_build(bank, folder / "index.duckdb", repeat)
@@ -231,7 +258,8 @@ def main() -> None:
         "--baseline",
         metavar="REV",
         help="with --length: also run each path with git revision REV's primlib; with "
-        "--composed: the revision timed beside this tree (default main)",
+        "--composed or --index: the revision timed beside this tree (--composed: default "
+        "main)",
     )
     ap.add_argument(
         "--composed",
@@ -250,6 +278,8 @@ def main() -> None:
         with tempfile.TemporaryDirectory(prefix="bench_index_") as folder:
             build_t, read_t, mb = index_persistence(bank_of("random-1000")[0], Path(folder))
         print(f"read / build: {read_t / build_t:.2f}")
+        if args.baseline:
+            index_build_baseline(args.baseline)
         return
     if args.restricted:
         restricted(machine)

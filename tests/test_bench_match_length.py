@@ -59,3 +59,8 @@ def test_index_read_back_from_duckdb_equals_the_built_one(modules, tmp_path):
     # compare() asserts every array read back equals the built one
     r = persist.compare(bank, tmp_path / "index.duckdb", repeat=1)
     assert r["build"] > 0 and r["read"] > 0 and r["mb"] > 0
+
+
+def test_index_build_is_timed_with_the_primlib_on_the_path(modules):
+    _, persist = modules
+    assert 0.0 < persist.build_seconds(repeat=2, kind="bundled") < 5.0
