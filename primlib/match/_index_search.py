@@ -393,14 +393,16 @@ class IndexSearch:
         """Score windows best-first in order of lower bounds until none left can enter the
         pool: the pool is then exactly the best distinct windows of scoring every window.
 
-        A sample of the windows (every ``sample``-th) ranked by the speed bound fills the
-        pool, so its threshold falls before any window is bounded; one pass over every
-        window with a cheap speed bound (2 groups) against it; on what passes, the tighter
-        speed bound and the half-window shape bound, and in increasing order of the two
-        combined (ℓ·τ and shape add in quadrature in the score) the principal-value bound
-        and exact scores, until the next bound reaches the pool's threshold. A window is
-        left out only when its shape bound reaches its gate or its combined bound the
-        pool's :attr:`~._pool.CandidatePool.combined`.
+        A sample of the windows (every ``sample``-th, time scale in range) ranked by the
+        speed bound fills the pool, so its threshold falls before any window is bounded;
+        one pass over every window with the time-scale test (:meth:`in_range`, which any
+        window scored must pass) and a cheap speed bound (2 groups) against it; on what
+        passes, the tighter speed bound and the half-window shape bound, and in increasing
+        order of the two combined (ℓ·τ and shape add in quadrature in the score) the
+        principal-value bound and exact scores, until the next bound reaches the pool's
+        threshold (:meth:`_drain`). A window is left out only when its time scale is out of
+        range, its shape bound reaches its gate or its combined bound the pool's
+        :attr:`~._pool.CandidatePool.combined`.
         """
         g = gates.top
         pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, g, math.sqrt(2.0) * g)
