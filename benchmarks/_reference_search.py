@@ -56,8 +56,8 @@ class ScanSearch(IndexSearch):
     def speed_bound(self, aq: ArcQuery, ws, parts: int = 4) -> np.ndarray:
         return np.zeros(ws[1] - ws[0] if isinstance(ws, tuple) else ws.size)
 
-    def speed_screen(self, aq: ArcQuery, block: tuple[int, int], tau: float) -> np.ndarray:
-        return np.ones(block[1] - block[0], dtype=bool)
+    def speed_screen(self, aq: ArcQuery, block, tau: float) -> np.ndarray:
+        return np.ones(block[1] - block[0] if isinstance(block, tuple) else block.size, dtype=bool)
 
 
 class InvariantBoundSearch(IndexSearch):
