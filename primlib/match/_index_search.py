@@ -57,6 +57,7 @@ from primlib.match._bounds import (
     half_bound_margin,
     half_window_bound,
     half_window_bound_fixed,
+    principal_bound,
     principal_bound_points,
     speed_bound,
     speed_screen,
@@ -249,9 +250,14 @@ class IndexSearch:
         )
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
-        """Principal-value lower bound of the shape RMSD of windows ``ws`` (from their
-        points: few windows get this far)."""
-        radius = aq.index.sums(aq.jb, aq.dil, products=self.opts.rotation != "full")[2]
+        """Principal-value lower bound of the shape RMSD of windows ``ws``: from the prefix
+        sums of the products where the restricted families' per-axis bound has them built
+        anyway (two columns a window), else from the windows' points (few windows get this
+        far; the rotation-invariant search builds no products)."""
+        if self.opts.rotation != "full":
+            psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
+            return principal_bound(psum, ws, aq.dil, aq.moments, pmax, radius)
+        radius = aq.index.sums(aq.jb, aq.dil, products=False)[2]
         return principal_bound_points(aq.level.pts, ws, aq.dil, aq.moments, radius)
 
     def speed_bound(self, aq: ArcQuery, ws: np.ndarray | tuple[int, int],
