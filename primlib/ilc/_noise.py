@@ -45,7 +45,7 @@ in another process computes exactly the same next input.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import fft
@@ -55,7 +55,7 @@ from primlib.ilc._laws import law_from_name
 from primlib.ilc._learn import _prepare, _update
 from primlib.ilc._qfilter import QFilter
 
-__all__ = ["TrialLearner", "TrialUpdate", "NoiseEstimate", "estimate_noise"]
+__all__ = ["TrialLearner", "TrialUpdate", "NoiseEstimate", "estimate_noise", "pooled_noise"]
 
 LAWS = ("p", "pd", "pid", "norm-optimal")  # the laws a trial series learns with
 _PER_DECADE = 12  # cut-off grid
@@ -183,6 +183,35 @@ def estimate_noise(
         target_power=np.maximum(tpower, 0.0),
         trials=m,
     )
+
+
+def pooled_noise(
+    h: np.ndarray, reference: np.ndarray, inputs: np.ndarray, outputs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """(floor_axes, noise_power) pooled over every settled pair of consecutive trials.
+
+    Each pair (j - 1, j) gives the difference of its errors with trial j - 1 moved to
+    u_j, G (v_j - v_{j-1}) for non-repeatable parts v: one trial's noise power twice. The
+    pairs of the settled trials -- measured RMS error within 3x the series' lowest, past the
+    learning transient, whose large moves would bring in the model's error -- are
+    averaged. Two trials give one draw of the noise, and a slow disturbance (a few cycles
+    per trial) has few degrees of freedom per draw: the noise a series' best trial is
+    judged by must not come from that trial's pair alone, which its low measured error
+    selected (the pair whose two disturbances happened to agree). None: no settled pair.
+    """
+    m, n, d = inputs.shape
+    rms = np.sqrt(np.mean(np.sum((reference[None] - outputs) ** 2, axis=2), axis=1))
+    settled = rms <= 3.0 * rms.min()
+    j = np.flatnonzero(settled[1:] & settled[:-1]) + 1
+    if j.size == 0:
+        return None
+    du = (inputs[j] - inputs[j - 1]).transpose(1, 0, 2).reshape(n, j.size * d)
+    moved = _model_response(np.tile(h, (1, j.size)), du).reshape(n, j.size, d)
+    diff = outputs[j].transpose(1, 0, 2) - outputs[j - 1].transpose(1, 0, 2) - moved
+    floor_axes = np.sqrt(np.sum(diff**2, axis=(0, 1)) / (2 * n * j.size))
+    win = np.hanning(n)[:, None, None]
+    noise = np.sum(np.abs(fft.rfft(diff * win, axis=0)) ** 2, axis=(1, 2)) / (2 * j.size)
+    return floor_axes, noise
 
 
 def _choose_cutoff(est: NoiseEstimate, n: int, dt: float) -> float:
@@ -411,13 +440,28 @@ class TrialLearner:
         float or None
         """
         u, y = self._check_history(inputs, outputs)
-        if u.shape[0] < 2:
+        return self._worth(u, y, u.shape[0])
+
+    def _worth(self, u: np.ndarray, y: np.ndarray, upto: int) -> float | None:
+        """input_error of trial ``upto - 1``'s input; the noise pooled over all trials."""
+        if upto < 2:
             return None
         # at least the last two trials, moved to the last input with the model, even where
         # the update's window took one (a large last move): a worth needs a noise estimate
-        m = max(self.window(u, y), 2)
-        est = estimate_noise(self._h, self.reference, u[-m:], y[-m:])
-        return self._remaining_last(u, y, est)
+        m = max(self.window(u[:upto], y[:upto]), 2)
+        est = estimate_noise(self._h, self.reference, u[upto - m : upto], y[upto - m : upto])
+        pooled = pooled_noise(self._h, self.reference, u, y)
+        if pooled is not None:
+            # the noise is the machine's, not the trial's: every settled pair says what it
+            # is (pooled_noise), where the last m alone are one or two draws
+            floor_axes, noise = pooled
+            est = replace(
+                est,
+                floor=float(np.sqrt(np.sum(floor_axes**2))),
+                floor_axes=floor_axes,
+                noise_power=noise,
+            )
+        return self._remaining_last(u[:upto], y[:upto], est)
 
     def best_input(self, inputs, outputs) -> tuple[int, float | None]:
         """(index, error): the trial whose measured RMS error is the lowest, and the true
@@ -439,7 +483,7 @@ class TrialLearner:
         """
         u, y = self._check_history(inputs, outputs)
         best = int(np.argmin(self._measured_rms(y)))
-        return best, self.input_error(u[: best + 1], y[: best + 1])
+        return best, self._worth(u, y, best + 1)
 
     def _measured_rms(self, y: np.ndarray) -> np.ndarray:
         """Each trial's measured RMS tracking error (Euclidean over the axes), shape (k,)."""
