@@ -52,6 +52,7 @@ _GAIN = 0.9  # a richer model must bring the CV error below this fraction to be 
 _MAX_ROWS = 400_000  # rows per axis fitted (pairs beyond are subsampled evenly)
 _SEARCH_ROWS = 40_000  # rows the ripple-frequency grid is evaluated on
 _GRID_MAX = 4000  # ripple frequencies tried at most
+_BATCH = 64  # ripple frequencies scored per batch
 _LIN = [TERMS.index(t) for t in LINEAR]
 _NONLIN = [TERMS.index(t) for t in NONLINEAR + POSITION]
 _FRICTION = [TERMS.index(t) for t in NONLINEAR]
@@ -238,6 +239,27 @@ def _with_ripple(F: np.ndarray, pos: np.ndarray, step: np.ndarray, w: float) -> 
     return G
 
 
+def _sse_batch(A, G00, b0, r2, rr, x, dxs, on, ws: np.ndarray) -> np.ndarray:
+    """:func:`_ripple_search`'s in-sample SSE at each frequency of ``ws`` at once: the
+    ripple columns of a batch of frequencies, their products with the base columns and the
+    bordered normal matrices, solved batched (the grid has up to ``_GRID_MAX`` points)."""
+    S = ripple_columns(x[:, None], dxs[:, None], ws[None, :]) * on[:, None, None]  # (r, 2, B)
+    S = S.transpose(2, 0, 1)  # (B, r, 2)
+    AS = np.einsum("rp,brk->bpk", A, S)
+    SS = np.einsum("brk,brl->bkl", S, S)
+    p = A.shape[1]
+    G = np.empty((ws.size, p + 2, p + 2))
+    G[:, :p, :p] = G00
+    G[:, :p, p:] = AS
+    G[:, p:, :p] = AS.transpose(0, 2, 1)
+    G[:, p:, p:] = SS
+    b = np.concatenate([np.broadcast_to(b0, (ws.size, p)), S.transpose(0, 2, 1) @ rr], axis=1)
+    ridge = _RIDGE * np.maximum(np.trace(G, axis1=1, axis2=2) / (p + 2), 1e-300)
+    G[:, np.arange(p + 2), np.arange(p + 2)] += ridge[:, None]
+    c = np.linalg.solve(G, b[..., None])[..., 0]
+    return r2 - np.sum(c * b, axis=1)
+
+
 def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarray) -> float:
     """Best spatial frequency of a ripple by in-sample fit (0 when none can be seen).
 
@@ -274,7 +296,12 @@ def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarr
 
     count = min(int((w_hi - w_lo) / (np.pi / (4 * span))) + 1, _GRID_MAX)
     grid = np.linspace(w_lo, w_hi, max(count, 2))
-    vals = np.array([sse(w) for w in grid])
+    vals = np.concatenate(
+        [
+            _sse_batch(A, G00, b0, r2, rr, x, dxs, on, grid[k : k + _BATCH])
+            for k in range(0, grid.size, _BATCH)
+        ]
+    )
     k = int(np.argmin(vals))
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
     if hi <= lo:
@@ -316,9 +343,32 @@ def _axis_fit(row: dict, linear: bool = True):
     if w > 0:
         err_r = _cv_ripple(row, Fo, ro, cols)
         if _rms(err_r) < _GAIN * _rms(best):
+            w = _ripple_polish(row, Fo, ro, cols + [6, 7], w)
             Go = _ripple_columns(row, Fo, w)
             return _solve(Go, ro, cols + [6, 7]), w, err_r, _rms(err_lin), rms0
     return _solve(Fo, ro, cols), 0.0, best, _rms(err_lin), rms0
+
+
+def _ripple_polish(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int], w: float) -> float:
+    """The ripple's frequency refined on the fit's own objective, the output error.
+
+    :func:`_ripple_search` scores frequencies on the input residual beside the linear
+    columns only (cheap, one normal matrix); its minimum sits a little off the output
+    error's, and a relative error of 5e-5 in ``w`` is 0.01 rad of phase 200 mm along the
+    table: with the coefficients refitted to it, 0.3-0.5 % of the ripple left in the
+    model-only input (issue 9's ripple setting). Searched within one grid step of ``w``.
+    """
+    pos = row["pos"][np.isfinite(row["pos"])]
+    step = np.pi / (4 * float(np.ptp(pos)))
+
+    def sse(x: float) -> float:
+        G = _ripple_columns(row, Fo, x)
+        return float(np.sum((ro - G @ _solve(G, ro, cols)) ** 2))
+
+    res = optimize.minimize_scalar(
+        sse, bounds=(w - step, w + step), method="bounded", options={"xatol": 1e-9 * w}
+    )
+    return float(res.x) if res.fun < sse(w) else w
 
 
 def _ripple_columns(row: dict, Fo: np.ndarray, w: float) -> np.ndarray:
