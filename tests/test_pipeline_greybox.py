@@ -11,6 +11,7 @@ from stage_helpers import STAGE, loop, nominal, stage_pair
 from primlib import InputError
 from primlib.nurbs import Trajectory
 from primlib.pipeline import Library
+from primlib.pipeline._greywarm import model_error, ripple_shifts
 from primlib.plant import invert
 
 ORIGINS = [(40.0, 25.0), (75.0, 10.0), (10.0, 60.0)]
@@ -103,3 +104,37 @@ def test_a_bad_origin_is_refused(library, origin, message):
         pts = np.asarray(bank.points)[: int(np.asarray(bank.offsets)[1])]
         with pytest.raises(InputError, match=message):
             lib.warm_start(Trajectory.from_samples(pts, STAGE.dt), "stage", origin=origin)
+
+
+def test_a_translated_piece_carries_the_ripple_models_error_from_both_places(library):
+    # in place the stored signal holds the exact correction of the model's ripple error
+    # there; moved 13 and 21 mm, it keeps that correction where it no longer applies and
+    # the re-evaluated ripple brings the model's error at the new place: predicted as two
+    # draws of the model's mismatch beside the signal's own error
+    with Library(library, read_only=True) as lib:
+        bank = lib.bank("stage")
+        offs = np.asarray(bank.offsets)
+        pts = np.asarray(bank.points)[offs[1] : offs[2]]
+        shift = np.array([13.0, 21.0])
+        new = pts + shift
+        here = lib.warm_start(Trajectory.from_samples(pts, STAGE.dt), "stage", origin=pts[0])
+        moved = lib.warm_start(Trajectory.from_samples(new, STAGE.dt), "stage", origin=new[0])
+        gb = moved.greybox
+        phase = ripple_shifts(gb, bank, moved.match.segments, new[0], new[0])
+        still = ripple_shifts(gb, bank, here.match.segments, pts[0], pts[0])
+        mismatch = model_error(gb, bank)
+    assert np.all(gb.w > 0)  # the stage's ripple was found on both axes
+    # the match's translation is exact to its fit (a few nm here), far below the 0.1 rad
+    # that counts as moved
+    assert still[0] < 1e-3
+    assert phase[0] == pytest.approx(float(np.max(shift * gb.w)), abs=1e-3)
+    # in place the stored signal whole; moved, its predicted error sqrt(e^2 + 2 m^2) >= m
+    # gives it at most a third of the mix (the stage's stored signal moved whole was 1.8x
+    # worse than the model-only input on this path)
+    assert here.weights == (1.0,) and here.choices == ("stored",)
+    assert 0.0 <= moved.weights[0] <= 1.0 / 3.0 + 1e-9
+    assert mismatch > 0
+    w = moved.weights[0]
+    if w > 0:  # one segment, one share: the stored signal carried whole is recoverable
+        whole = (moved.u - (1.0 - w) * moved.model_u) / w
+        assert _err(moved.u, new, new[0]) < _err(whole, new, new[0])

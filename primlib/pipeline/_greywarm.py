@@ -35,10 +35,15 @@ __all__ = [
     "choose_per_segment",
     "linear_parts",
     "model_error",
+    "ripple_shifts",
     "stored_errors",
 ]
 
 _NONLINEAR_TERMS = [TERMS.index(t) for t in NONLINEAR + POSITION]
+_POSITION_TERMS = [TERMS.index(t) for t in POSITION]
+# a translation that moves the ripple's phase by more than this (rad) carries the ripple
+# model's error from where the piece ran to where it runs (:func:`choose_per_segment`)
+_MOVED_PHASE = 0.1
 _IN_PLACE_TOL = 1e-6  # rotation, time scale: |R - I|, |k - 1| below this is "not transformed"
 # How far a recorded error_rms may understate the true error: the trial learner's estimate was
 # 0.7-1.25x the truth on benchmarks/bench_realism.py's libraries (noise, friction, ripple,
@@ -98,6 +103,40 @@ def _transformed(seg) -> bool:
         float(np.max(np.abs(R - np.eye(R.shape[0])))) > _IN_PLACE_TOL
         or abs(float(seg.time_scale) - 1.0) > _IN_PLACE_TOL
     )
+
+
+def ripple_shifts(gb: GreyBox, bank: Bank, segments, origin, path_start) -> np.ndarray:
+    """Per segment, how far the ripple's phase moves between where the stored piece ran and
+    where the new one runs: max over the axes with a ripple of |shift_a| w_a, rad.
+
+    A piece neither rotated nor time-scaled sits at ``origin + (p - path_start)`` on the
+    machine (``p`` a point of the path in the frame it was matched in) and its stored
+    counterpart at ``o_i + (P - P_i(0))`` (``o_i`` the primitive's recorded origin); the
+    match says ``p = P + translation``. 0 without a ripple or for unmatched and transformed
+    segments (they are judged otherwise); inf where either absolute place is unknown.
+    """
+    on = (gb.w > 0) & np.any(gb.coef[:, _POSITION_TERMS] != 0, axis=1)
+    out = np.zeros(len(segments))
+    if not np.any(on):
+        return out
+    offs = np.asarray(bank.offsets)
+    pts = np.asarray(bank.points)
+    org = bank_origins(bank)
+    where = {int(i): k for k, i in enumerate(np.asarray(bank.ids))}
+    for j, seg in enumerate(segments):
+        if seg.primitive is None or _transformed(seg):
+            continue
+        k = where.get(int(seg.primitive))
+        if k is None or origin is None or not np.all(np.isfinite(org[k])):
+            out[j] = np.inf
+            continue
+        shift = (
+            np.asarray(origin, float) - np.asarray(path_start, float)
+            + np.asarray(seg.translation, float)
+            - (org[k] - pts[offs[k]])
+        )  # fmt: skip
+        out[j] = float(np.max(np.abs(shift[on]) * gb.w[on]))
+    return out
 
 
 def _known_errors(bank: Bank) -> np.ndarray:
@@ -175,15 +214,19 @@ def choose_per_segment(
     u_stored: np.ndarray,
     u_model: np.ndarray,
     gap: np.ndarray | None = None,
+    shifts: np.ndarray | None = None,
 ) -> tuple[np.ndarray, tuple[str, ...], tuple[tuple[float, float], ...], tuple[float, ...]]:
     """Per segment the stored signal, the model-only input or their mix, by predicted error.
 
     Predicted RMS output errors (Euclidean over the axes): the model-only input's is
     sqrt(m^2 + g^2), m the model's mismatch (:func:`model_error`) and g the segment's RMS
     of ``gap`` (:meth:`GreyBox.inverse_gap` of the new path, shape (n, d); None: none). The
-    stored signal's, in place or translated, is the error its primitive's input left where
-    it ran (``error_rms``; a translation moves every term the model has and the rest of the
-    stored input is carried exactly). A rotated or time-scaled piece carries by
+    stored signal's, in place, is the error its primitive's input left where it ran
+    (``error_rms``); translated where the model has a ripple (``shifts``, per segment the
+    phase it moves, :func:`ripple_shifts`; None: none moved), that error and twice the
+    mismatch in power -- the ripple re-evaluated at the new place is right only as far as
+    the model is, and the stored signal keeps the correction of the model's ripple error
+    where it ran. A rotated or time-scaled piece carries by
     superposition the part of the stored input the model does not explain: right if that
     part is linear, so on a machine where the fit found no friction and no ripple its
     prediction is the larger of the model's mismatch (not the gap: the stored signal
@@ -228,6 +271,12 @@ def choose_per_segment(
             if moved:  # superposition carries the model's mismatch, not its inverse's gap
                 stored_err = max(e, lin_err if nonlinear else mismatch)
                 stored_hi = max(stored_hi, lin_err if nonlinear else mismatch_lo)
+            elif shifts is not None and shifts[j] > _MOVED_PHASE:
+                # the ripple the model got wrong where the piece ran stays in its stored
+                # signal, and the model's error where it runs now comes in: two draws of
+                # (at most) the mismatch
+                stored_err = float(np.hypot(e, np.sqrt(2.0) * mismatch))
+                stored_hi = float(np.hypot(stored_hi, np.sqrt(2.0) * mismatch))
         share = _weight(moved, stored_hi, model_lo)
         choices.append("stored" if share == 1.0 else "model" if share == 0.0 else "blend")
         predicted.append((stored_err, model_err))

@@ -28,6 +28,7 @@ from primlib.pipeline._greywarm import (
     bank_pairs,
     choose_per_segment,
     linear_parts,
+    ripple_shifts,
 )
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
@@ -278,7 +279,7 @@ class WarmStarter:
         )
         if gb is None:
             return _warm_start_result(res, m, match, model)
-        return _grey_result(res, m, match, model, gb, bank, pts - pts[0], origin)
+        return _grey_result(res, m, match, model, gb, bank, pts, origin)
 
     def _models(self, m: Machine, bank: Bank, ids, refine: bool, greybox: bool):
         """(refined model or None, grey-box model or None, the stored signals to splice).
@@ -374,13 +375,15 @@ class WarmStarter:
         return LearnRun(m, ref, t, ws, res, crms, tuple(notes))
 
 
-def _grey_result(res, m, match, model, gb, bank, ref, origin) -> WarmStart:
-    """The WarmStart with the grey-box model: nonlinear terms added, chosen per segment."""
+def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
+    """The WarmStart with the grey-box model: nonlinear terms added, chosen per segment
+    (``pts``: the path's samples in the frame it was matched in)."""
+    ref = pts - pts[0]
     u_lin, lin, non = gb.terms(ref, origin)
     model_u = u_lin + lin + non
     u, choices, predicted, shares = choose_per_segment(
         gb, bank, res.segments, res.sample_segment, res.u + non, model_u,
-        gb.inverse_gap(ref, u_lin),
+        gb.inverse_gap(ref, u_lin), ripple_shifts(gb, bank, res.segments, origin, pts[0]),
     )  # fmt: skip
     base = _warm_start_result(res, m, match, model)
     used = [
