@@ -254,7 +254,10 @@ def test_a_best_trials_worth_is_not_judged_by_its_own_lucky_pair():
     # the machine is 10 % stronger than the learner's model: the first input (the model's
     # inverse) is off, and learning pays (on an exact model the first trial would be best)
     true = Machine(
-        XYZ.name, XYZ.dt, XYZ.axes, {a: (1.1 * np.asarray(n), d) for a, (n, d) in XYZ.plants.items()}
+        XYZ.name,
+        XYZ.dt,
+        XYZ.axes,
+        {a: (1.1 * np.asarray(n), d) for a, (n, d) in XYZ.plants.items()},
     )
     shaken = RealisticMachine.from_machine(true, seed=5, disturbance=0.02 * size)
     learner = TrialLearner(XYZ, ref)
