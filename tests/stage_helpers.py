@@ -38,3 +38,18 @@ def stage_pair(path: np.ndarray, origin, iterations: int = 12) -> Pair:
         e = path - STAGE.simulate(u, start=origin)
         u = u + invert(nom, e)
     return Pair(u, path, np.asarray(origin, float))
+
+
+def run_learner(model: Machine, runner, ref: np.ndarray, trials: int):
+    """The noise-aware trial learner on ``model`` from the model's inverse, ``trials`` runs of
+    ``runner`` (a machine's :meth:`trials`): the learner, the inputs run and the outputs
+    measured, stacked."""
+    from primlib.ilc import TrialLearner
+
+    learner = TrialLearner(model, ref)
+    u, inputs, outputs = invert(model, ref), [], []
+    for _ in range(trials):
+        outputs.append(runner.run(u))
+        inputs.append(u)
+        u = learner.update(np.stack(inputs), np.stack(outputs)).u
+    return learner, np.stack(inputs), np.stack(outputs)

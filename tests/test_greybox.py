@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stage_helpers import ROOT, STAGE
+from stage_helpers import ROOT, STAGE, run_learner
 from stage_helpers import loop as _loop
 from stage_helpers import nominal as _nominal
 from stage_helpers import stage_pair as _stage_pair
@@ -13,7 +13,6 @@ from stage_helpers import stage_pair as _stage_pair
 from primlib import InputError
 from primlib.greybox import TERMS, Pair, fit_greybox
 from primlib.greybox._features import ripple_columns
-from primlib.ilc import TrialLearner
 from primlib.plant import Machine, RealisticMachine, invert
 
 
@@ -170,13 +169,9 @@ def test_the_ripple_frequency_is_where_the_output_error_is_least():
             [30 * s * np.cos(a) + 5 * np.sin(2 * np.pi * s * (k + 1)), 30 * s * np.sin(a), 2 * s]
         )
         origin = rng.uniform(10, 60, 3)
-        learner, runner = TrialLearner(xyz, ref), rm.trials(start=origin, first=100 * k)
-        u, inputs, outputs = invert(xyz, ref), [], []
-        for _ in range(6):
-            outputs.append(runner.run(u))
-            inputs.append(u)
-            u = learner.update(np.stack(inputs), np.stack(outputs)).u
-        best, _ = learner.best_input(np.stack(inputs), np.stack(outputs))
+        runner = rm.trials(start=origin, first=100 * k)
+        learner, inputs, outputs = run_learner(xyz, runner, ref, 6)
+        best, _ = learner.best_input(inputs, outputs)
         pairs.append(Pair(inputs[best], ref, origin))
     gb = fit_greybox(xyz, pairs)
     w_true = 2 * np.pi / 5.0

@@ -10,11 +10,10 @@ import duckdb
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from stage_helpers import ROOT, STAGE, loop, nominal, stage_pair
+from stage_helpers import ROOT, STAGE, loop, nominal, run_learner, stage_pair
 
 from primlib import InputError
 from primlib.cli import main
-from primlib.ilc import TrialLearner
 from primlib.nurbs import Trajectory
 from primlib.pipeline import Library
 from primlib.plant import Machine, RealisticMachine, invert
@@ -83,14 +82,9 @@ def test_a_bad_error_rms_is_refused_and_nothing_is_written(tmp_path, value, mess
 def _series(machine, ref, trials: int):
     """Trials of the noise-aware learner on a noisy machine: inputs, measurements and the
     true (noise-free) motion of each."""
-    learner = TrialLearner(machine, ref)
     runner = machine.trials(start=[50.0, 40.0, 10.0])
-    u, inputs, outputs = invert(machine, ref), [], []
-    for _ in range(trials):
-        outputs.append(runner.run(u))
-        inputs.append(u)
-        u = learner.update(np.stack(inputs), np.stack(outputs)).u
-    return learner, np.stack(inputs), np.stack(outputs), runner.true
+    learner, inputs, outputs = run_learner(machine, runner, ref, trials)
+    return learner, inputs, outputs, runner.true
 
 
 def test_the_learner_estimates_the_true_error_its_last_input_leaves():
@@ -260,16 +254,11 @@ def test_a_best_trials_worth_is_not_judged_by_its_own_lucky_pair():
         {a: (1.1 * np.asarray(n), d) for a, (n, d) in XYZ.plants.items()},
     )
     shaken = RealisticMachine.from_machine(true, seed=5, disturbance=0.02 * size)
-    learner = TrialLearner(XYZ, ref)
     ratios = []
     for series in range(5):
         runner = shaken.trials(start=[0.0, 0.0, 0.0], first=100 * series)
-        u, inputs, outputs = invert(XYZ, ref), [], []
-        for _ in range(12):
-            outputs.append(runner.run(u))
-            inputs.append(u)
-            u = learner.update(np.stack(inputs), np.stack(outputs)).u
-        best, worth = learner.best_input(np.stack(inputs), np.stack(outputs))
+        learner, inputs, outputs = run_learner(XYZ, runner, ref, 12)
+        best, worth = learner.best_input(inputs, outputs)
         own = float(np.sqrt(np.mean(np.sum((ref - true.simulate(inputs[best])) ** 2, axis=1))))
         ratios.append(worth / own)
     assert 1 / 1.5 < float(np.median(ratios)) < 1.5, ratios

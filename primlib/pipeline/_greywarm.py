@@ -206,6 +206,15 @@ def _weight(transformed: bool, stored_err: float, model_err: float) -> float:
     return 1.0 if total == 0.0 else model_err**2 / total
 
 
+def _in_place(e: float, mismatch: float) -> tuple[float, float]:
+    """(prediction, upper bound) of a stored signal neither rotated nor time-scaled, its
+    own error ``e``; ``mismatch`` > 0 where a translation moved the ripple's phase: the
+    ripple the model got wrong where the piece ran stays in its stored signal and the
+    model's error where it runs now comes in, two draws of (at most) the mismatch."""
+    moved = np.sqrt(2.0) * mismatch
+    return float(np.hypot(e, moved)), float(np.hypot(ERROR_SPREAD * e, moved))
+
+
 def choose_per_segment(
     gb: GreyBox,
     bank: Bank,
@@ -267,16 +276,12 @@ def choose_per_segment(
         stored_err, stored_hi, moved = np.inf, np.inf, _transformed(seg)
         if seg.primitive is not None:
             e = own.get(int(seg.primitive), 0.0)
-            stored_err, stored_hi = e, ERROR_SPREAD * e
             if moved:  # superposition carries the model's mismatch, not its inverse's gap
                 stored_err = max(e, lin_err if nonlinear else mismatch)
-                stored_hi = max(stored_hi, lin_err if nonlinear else mismatch_lo)
-            elif shifts is not None and shifts[j] > _MOVED_PHASE:
-                # the ripple the model got wrong where the piece ran stays in its stored
-                # signal, and the model's error where it runs now comes in: two draws of
-                # (at most) the mismatch
-                stored_err = float(np.hypot(e, np.sqrt(2.0) * mismatch))
-                stored_hi = float(np.hypot(stored_hi, np.sqrt(2.0) * mismatch))
+                stored_hi = max(ERROR_SPREAD * e, lin_err if nonlinear else mismatch_lo)
+            else:
+                shifted = shifts is not None and shifts[j] > _MOVED_PHASE
+                stored_err, stored_hi = _in_place(e, mismatch if shifted else 0.0)
         share = _weight(moved, stored_hi, model_lo)
         choices.append("stored" if share == 1.0 else "model" if share == 0.0 else "blend")
         predicted.append((stored_err, model_err))
