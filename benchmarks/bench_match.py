@@ -166,17 +166,15 @@ def _length_goal(n: int, grow: float, ratio: float, r: dict) -> str:
     return "; ".join(parts) or "-"
 
 
-def composed(baseline: str, rounds: int = 2) -> None:
-    """``--composed``: the composed path's first call (median of 3 fresh opens) and warm
-    call (median of 5) against 1,000 primitives, this tree and revision ``baseline``
-    alternated ``rounds`` times, each in its own process (``_composed.py``); the medians
-    over the rounds, the ratio, and whether both cut the same segments (asserted)."""
+def _alternated(worker: str, arg: str, baseline: str, rounds: int) -> dict[str, list]:
+    """Run ``benchmarks/<worker> --worker <arg>`` with this tree's primlib and with revision
+    ``baseline``'s (extracted by ``git archive``), alternated ``rounds`` times, each in its
+    own single-threaded process; each run's last output line, parsed as JSON, per tree."""
     import json
 
-    spec = json.dumps({"k": 1000, "first": 3, "warm": 5, "root": str(ROOT)})
-    worker = str(Path(__file__).resolve().parent / "_composed.py")
-    res: dict[str, list[dict]] = {"this tree": [], baseline: []}
-    with tempfile.TemporaryDirectory(prefix="bench_composed_base_") as folder:
+    script = str(Path(__file__).resolve().parent / worker)
+    res: dict[str, list] = {"this tree": [], baseline: []}
+    with tempfile.TemporaryDirectory(prefix="bench_match_base_") as folder:
         tar = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "primlib"],
                              capture_output=True, check=True).stdout  # fmt: skip
         subprocess.run(["tar", "-x", "-C", folder], input=tar, check=True)
@@ -185,9 +183,21 @@ def composed(baseline: str, rounds: int = 2) -> None:
             for label in list(trees) if r % 2 == 0 else list(trees)[::-1]:
                 env = dict(os.environ, PYTHONPATH=trees[label], OMP_NUM_THREADS="1",
                            OPENBLAS_NUM_THREADS="1")  # fmt: skip
-                out = subprocess.run([sys.executable, worker, "--worker", spec], env=env,
+                out = subprocess.run([sys.executable, script, "--worker", arg], env=env,
                                      capture_output=True, text=True, check=True)  # fmt: skip
                 res[label].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    return res
+
+
+def composed(baseline: str, rounds: int = 2) -> None:
+    """``--composed``: the composed path's first call (median of 3 fresh opens) and warm
+    call (median of 5) against 1,000 primitives, this tree and revision ``baseline``
+    alternated ``rounds`` times, each in its own process (``_composed.py``); the medians
+    over the rounds, the ratio, and whether both cut the same segments (asserted)."""
+    import json
+
+    spec = json.dumps({"k": 1000, "first": 3, "warm": 5, "root": str(ROOT)})
+    res = _alternated("_composed.py", spec, baseline, rounds)
     new, old = res["this tree"], res[baseline]
     assert all(r["segments"] == new[0]["segments"] for r in new + old), "segments differ"
     print(f"\ncomposed path, 1,000 primitives ({rounds} rounds alternated; baseline git "
@@ -206,22 +216,8 @@ def index_build_baseline(baseline: str, rounds: int = 3) -> None:
     """``--index --baseline REV``: the index build alone (``_index_persist.build_seconds``,
     median of 5) with this tree and revision REV, alternated ``rounds`` times, each in its
     own process."""
-    import json
 
-    worker = str(Path(__file__).resolve().parent / "_index_persist.py")
-    res: dict[str, list[float]] = {"this tree": [], baseline: []}
-    with tempfile.TemporaryDirectory(prefix="bench_index_base_") as folder:
-        tar = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "primlib"],
-                             capture_output=True, check=True).stdout  # fmt: skip
-        subprocess.run(["tar", "-x", "-C", folder], input=tar, check=True)
-        trees = {"this tree": str(ROOT), baseline: folder}
-        for r in range(rounds):
-            for label in list(trees) if r % 2 == 0 else list(trees)[::-1]:
-                env = dict(os.environ, PYTHONPATH=trees[label], OMP_NUM_THREADS="1",
-                           OPENBLAS_NUM_THREADS="1")  # fmt: skip
-                out = subprocess.run([sys.executable, worker, "--worker", "5"], env=env,
-                                     capture_output=True, text=True, check=True)  # fmt: skip
-                res[label].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    res = _alternated("_index_persist.py", "5", baseline, rounds)
     a, b = statistics.median(res["this tree"]), statistics.median(res[baseline])
     print(f"index build alone (arc-length index + envelopes, 1,000 primitives; {rounds} rounds "
           f"alternated): this tree {a:.3f} s, git revision {baseline} {b:.3f} s, "
