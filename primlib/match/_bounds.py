@@ -417,6 +417,16 @@ def strided_cumsum(x: np.ndarray, dil: int) -> tuple[np.ndarray, float, float]:
     return flat, float(np.abs(flat).max(initial=0.0)), float(np.abs(x).max(initial=0.0))
 
 
+def _window_reader(block: tuple[int, int] | np.ndarray):
+    """(n, col): the number of windows of ``block`` -- a range (c0, c1) read as slices, or
+    an index array of window starts, gathered -- and ``col(a, off)``, the values of ``a``
+    ``off`` samples into each of them."""
+    if isinstance(block, tuple):
+        c0, c1 = block
+        return c1 - c0, lambda a, off: a[c0 + off : c1 + off]
+    return block.size, lambda a, off: a[block + off]
+
+
 def speed_bound(
     csum: tuple[np.ndarray, float, float],
     x: np.ndarray,
@@ -452,17 +462,7 @@ def speed_bound(
     """
     csum_, cmax, xmax = csum
     k = tau_q.size
-    if isinstance(starts, tuple):
-        c0, c1 = starts
-        n = c1 - c0
-
-        def col(a, off):
-            return a[c0 + off : c1 + off]
-    else:
-        n = starts.size
-
-        def col(a, off):
-            return a[starts + off]
+    n, col = _window_reader(starts)
 
     inner = k - 2
     if inner <= 0 or n == 0:
@@ -512,17 +512,7 @@ def speed_screen(
     """
     csum_, cmax, xmax = csum
     k = tau_q.size
-    if isinstance(block, tuple):
-        c0, c1 = block
-        n = c1 - c0
-
-        def col(a, off):
-            return a[c0 + off : c1 + off]
-    else:
-        n = block.size
-
-        def col(a, off):
-            return a[block + off]
+    n, col = _window_reader(block)
 
     inner = k - 2
     if inner <= 0 or not math.isfinite(limit):
