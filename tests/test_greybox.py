@@ -178,3 +178,30 @@ def test_the_ripple_frequency_is_where_the_output_error_is_least():
     assert np.all(np.abs(gb.w[:2] / w_true - 1) < 5e-5), gb.w
     # the phase: the ripple is c sin(w x) with no cos part
     assert np.all(np.abs(gb.coef[:2, 7]) < 0.01 * 0.3), gb.coef[:, 6:8]
+
+
+def test_the_ripple_grid_scored_in_batches_is_the_one_frequency_formula():
+    # the grid's SSE per frequency, batched (bordered normal matrices solved together), is
+    # the same least squares as one frequency at a time: r'r - b'G^-1 b, to round-off
+    from primlib.greybox import _fit
+
+    rng = np.random.default_rng(0)
+    n = 1500
+    A = rng.standard_normal((n, 6))
+    x = np.cumsum(rng.uniform(-0.05, 0.2, n))
+    step = np.diff(x, append=x[-1])
+    on = rng.random(n) > 0.1
+    r = 0.3 * np.sin(1.2566 * x) + A @ rng.standard_normal(6) + 0.01 * rng.standard_normal(n)
+    G00, b0, r2 = A.T @ A, A.T @ r, float(r @ r)
+    ws = np.linspace(0.5, 3.0, 37)
+
+    def one(w):
+        S = ripple_columns(x, step, w) * on[:, None]
+        G = np.block([[G00, A.T @ S], [S.T @ A, S.T @ S]])
+        b = np.concatenate([b0, S.T @ r])
+        G[np.diag_indices_from(G)] += _fit._RIDGE * np.trace(G) / len(G)
+        return r2 - float(b @ np.linalg.solve(G, b))
+
+    batched = _fit._sse_batch(A, G00, b0, r2, r, x, step, on, ws)
+    assert np.allclose(batched, [one(w) for w in ws], rtol=0, atol=1e-10 * r2)
+    assert abs(ws[np.argmin(batched)] - 1.2566) < ws[1] - ws[0]  # and it finds the ripple
