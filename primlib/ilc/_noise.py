@@ -185,6 +185,11 @@ def estimate_noise(
     )
 
 
+def _trial_rms(reference: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+    """Each trial's RMS tracking error (Euclidean over the axes), shape (k,)."""
+    return np.sqrt(np.mean(np.sum((reference[None] - outputs) ** 2, axis=2), axis=1))
+
+
 def pooled_noise(
     h: np.ndarray, reference: np.ndarray, inputs: np.ndarray, outputs: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray] | None:
@@ -199,19 +204,16 @@ def pooled_noise(
     judged by must not come from that trial's pair alone, which its low measured error
     selected (the pair whose two disturbances happened to agree). None: no settled pair.
     """
-    m, n, d = inputs.shape
-    rms = np.sqrt(np.mean(np.sum((reference[None] - outputs) ** 2, axis=2), axis=1))
+    rms = _trial_rms(reference, outputs)
     settled = rms <= 3.0 * rms.min()
-    j = np.flatnonzero(settled[1:] & settled[:-1]) + 1
-    if j.size == 0:
+    ends = np.flatnonzero(settled[1:] & settled[:-1]) + 2
+    if ends.size == 0:
         return None
-    du = (inputs[j] - inputs[j - 1]).transpose(1, 0, 2).reshape(n, j.size * d)
-    moved = _model_response(np.tile(h, (1, j.size)), du).reshape(n, j.size, d)
-    diff = outputs[j].transpose(1, 0, 2) - outputs[j - 1].transpose(1, 0, 2) - moved
-    floor_axes = np.sqrt(np.sum(diff**2, axis=(0, 1)) / (2 * n * j.size))
-    win = np.hanning(n)[:, None, None]
-    noise = np.sum(np.abs(fft.rfft(diff * win, axis=0)) ** 2, axis=(1, 2)) / (2 * j.size)
-    return floor_axes, noise
+    # each pair is what estimate_noise makes of two trials; a pair's floor^2 and N(f) are
+    # one trial's noise power, so the pool is their mean
+    pairs = [estimate_noise(h, reference, inputs[e - 2 : e], outputs[e - 2 : e]) for e in ends]
+    floor_axes = np.sqrt(np.mean([p.floor_axes**2 for p in pairs], axis=0))
+    return floor_axes, np.mean([p.noise_power for p in pairs], axis=0)
 
 
 def _choose_cutoff(est: NoiseEstimate, n: int, dt: float) -> float:
@@ -487,7 +489,7 @@ class TrialLearner:
 
     def _measured_rms(self, y: np.ndarray) -> np.ndarray:
         """Each trial's measured RMS tracking error (Euclidean over the axes), shape (k,)."""
-        return np.sqrt(np.mean(np.sum((self.reference[None] - y) ** 2, axis=2), axis=1))
+        return _trial_rms(self.reference, y)
 
     def assess(self, inputs, outputs) -> tuple[NoiseEstimate | None, bool, bool]:
         """(noise estimate, converged, diverging) after the last recorded trial.
