@@ -240,6 +240,11 @@ def _with_ripple(F: np.ndarray, pos: np.ndarray, step: np.ndarray, w: float) -> 
     return G
 
 
+def _grid_step(span: float) -> float:
+    """The ripple grid's spacing in w: a quarter period over the positions covered."""
+    return np.pi / (4 * span)
+
+
 def _sse_batch(A, G00, b0, r2, rr, x, dxs, on, ws: np.ndarray) -> np.ndarray:
     """:func:`_ripple_search`'s in-sample SSE at each frequency of ``ws`` at once: the
     ripple columns of a batch of frequencies, their products with the base columns and the
@@ -265,8 +270,8 @@ def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarr
     """Best spatial frequency of a ripple by in-sample fit (0 when none can be seen).
 
     The base columns' normal matrix is formed once; each candidate only adds its two
-    columns' products (on at most ``_SEARCH_ROWS`` evenly spread rows), so the grid costs
-    about one pass over the data per candidate's sin and cos.
+    columns' products (on at most ``_SEARCH_ROWS`` evenly spread rows, :func:`_sse_batch`),
+    so the grid costs about one pass over the data per candidate's sin and cos.
     """
     known = np.isfinite(pos)
     if known.sum() < 16:
@@ -288,14 +293,9 @@ def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarr
     G00, b0, r2 = A.T @ A, A.T @ rr, float(rr @ rr)
 
     def sse(w: float) -> float:
-        S = ripple_columns(x, dxs, w) * on[:, None]
-        G = np.block([[G00, A.T @ S], [S.T @ A, S.T @ S]])
-        b = np.concatenate([b0, S.T @ rr])
-        G[np.diag_indices_from(G)] += _RIDGE * max(float(np.trace(G)) / len(G), 1e-300)
-        c = np.linalg.solve(G, b)
-        return r2 - 2 * float(c @ b) + float(c @ G @ c)
+        return float(_sse_batch(A, G00, b0, r2, rr, x, dxs, on, np.array([w]))[0])
 
-    count = min(int((w_hi - w_lo) / (np.pi / (4 * span))) + 1, _GRID_MAX)
+    count = min(int((w_hi - w_lo) / _grid_step(span)) + 1, _GRID_MAX)
     grid = np.linspace(w_lo, w_hi, max(count, 2))
     vals = np.concatenate(
         [
@@ -352,25 +352,25 @@ def _axis_fit(row: dict, linear: bool = True):
             # a frequency moved by 5e-5 is buried in the inverse's gap and the stored
             # inputs' own errors (it chose the unpolished x of bench_realism's ripple
             # setting, 0.0013 of its 0.33 amplitude left against 0.0007 polished)
-            pos = row["pos"][np.isfinite(row["pos"])]
-            if len(row["starts"]) > 2 and np.ptp(pos) * w >= 2 * np.pi * _POLISH_PERIODS:
-                w = _ripple_polish(row, Fo, ro, cols + [6, 7], w)
+            span = float(np.ptp(row["pos"][np.isfinite(row["pos"])]))
+            if len(row["starts"]) > 2 and span * w >= 2 * np.pi * _POLISH_PERIODS:
+                w = _ripple_polish(row, Fo, ro, cols + [6, 7], w, _grid_step(span))
             Go = _ripple_columns(row, Fo, w)
             return _solve(Go, ro, cols + [6, 7]), w, err_r, _rms(err_lin), rms0
     return _solve(Fo, ro, cols), 0.0, best, _rms(err_lin), rms0
 
 
-def _ripple_polish(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int], w: float) -> float:
+def _ripple_polish(
+    row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int], w: float, step: float
+) -> float:
     """The ripple's frequency refined on the fit's own objective, the output error.
 
     :func:`_ripple_search` scores frequencies on the input residual beside the linear
     columns only (cheap, one normal matrix); its minimum sits a little off the output
     error's, and a relative error of 5e-5 in ``w`` is 0.01 rad of phase 200 mm along the
     table: with the coefficients refitted to it, 0.3-0.5 % of the ripple left in the
-    model-only input (issue 9's ripple setting). Searched within one grid step of ``w``.
+    model-only input (issue 9's ripple setting). Searched within one grid ``step`` of ``w``.
     """
-    pos = row["pos"][np.isfinite(row["pos"])]
-    step = np.pi / (4 * float(np.ptp(pos)))
 
     def sse(x: float) -> float:
         G = _ripple_columns(row, Fo, x)
