@@ -228,24 +228,23 @@ def choose_per_segment(
     """Per segment the stored signal, the model-only input or their mix, by predicted error.
 
     Predicted RMS output errors (Euclidean over the axes): the model-only input's is
-    sqrt(m^2 + g^2), m the model's mismatch (:func:`model_error`) and g the segment's RMS
-    of ``gap`` (:meth:`GreyBox.inverse_gap` of the new path, shape (n, d); None: none). The
+    sqrt(m^2 + g^2), m the model's mismatch (:func:`model_error`) and g the segment's RMS of
+    ``gap`` (:meth:`GreyBox.inverse_gap` of the new path, shape (n, d); None: none). The
     stored signal's, in place, is the error its primitive's input left where it ran
     (``error_rms``); translated where the model has a ripple (``shifts``, per segment the
     phase it moves, :func:`ripple_shifts`; None: none moved), that error and twice the
     mismatch in power -- the ripple re-evaluated at the new place is right only as far as
     the model is, and the stored signal keeps the correction of the model's ripple error
-    where it ran. A rotated or time-scaled piece carries by
-    superposition the part of the stored input the model does not explain: right if that
-    part is linear, so on a machine where the fit found no friction and no ripple its
-    prediction is the larger of the model's mismatch (not the gap: the stored signal
-    learned that band) and its own; where the fit found them, the unexplained part is likely
-    of their kind and does not transform, so the prediction is what the linear model alone
-    misses (``rms_nominal``), or its own error if larger. An unmatched segment has only the
-    model. The shares are :func:`_weight`'s of bounds: the recorded errors taken
-    :data:`ERROR_SPREAD` times larger and the mismatch ``model_error(gb, bank,
-    ERROR_SPREAD)`` then left; where the shares change between segments the inputs are
-    blended over a band of ``BAND_SAMPLES``.
+    where it ran. A rotated or time-scaled piece carries by superposition the part of the
+    stored input the model does not explain: right if that part is linear, so on a machine
+    where the fit found no friction and no ripple its prediction is the larger of the
+    model's mismatch (not the gap: the stored signal learned that band) and its own; where
+    the fit found them, the unexplained part is likely of their kind and does not transform,
+    so the prediction is what the linear model alone misses (``rms_nominal``), or its own
+    error if larger. An unmatched segment has only the model. The shares are
+    :func:`_weight`'s of bounds: the recorded errors taken :data:`ERROR_SPREAD` times larger
+    and the mismatch ``model_error(gb, bank, ERROR_SPREAD)`` then left; where the shares
+    change between segments the inputs are blended over a band of ``BAND_SAMPLES``.
 
     Returns
     -------
