@@ -308,17 +308,19 @@ class IndexSearch:
         if screen:
             # the screen: a window whose end crosses its primitive's last level point (a few
             # per block) stays, for the exact test of the batch that scores it
-            ok = (x_end - x0) / aq.duration
-            lo, hi = self.opts.time_scale
-            return ((ok >= lo / 1.1) & (ok <= hi * 1.1)) | ~inside, x_end
+            return self._scale_ok((x_end - x0) / aq.duration) | ~inside, x_end
         fix = ~inside
         if np.any(fix):
             at = np.flatnonzero(fix)
             start = at + ws[0] if isinstance(ws, tuple) else ws[at]
             x_end[at] = aq.index.arc_to_sample(lv.garc[start] + aq.ell, lv.prim[start])
-        scale = (x_end - x0) / aq.duration
+        return self._scale_ok((x_end - x0) / aq.duration), x_end
+
+    def _scale_ok(self, scale: np.ndarray) -> np.ndarray:
+        """Whether each time scale is in the range, with :meth:`in_range`'s 10 % slack (the
+        screen and the exact test must agree on it)."""
         lo, hi = self.opts.time_scale
-        return (scale >= lo / 1.1) & (scale <= hi * 1.1), x_end
+        return (scale >= lo / 1.1) & (scale <= hi * 1.1)
 
     def _combine(self, aq: ArcQuery, shape: np.ndarray, xw: np.ndarray) -> np.ndarray:
         """Shape RMSD combined with ℓ·(RMS normalised-time error at the arc samples).
