@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from primlib.match import BankIndex
 from primlib.match._options import Candidate, PathPiece, SearchOptions
-from primlib.match._refine import _AMAT, clamp, piece_rmsd, refine, solve_box_qp2
+from primlib.match._refine import _AMAT, clamp, clamp_many, piece_rmsd, refine, solve_box_qp2
 from primlib.store import Bank
 
 DT = 0.01
@@ -77,6 +77,26 @@ def test_clamp_keeps_the_duration_in_range_and_inside_the_primitive():
     assert c.x1 - c.x0 == pytest.approx(50.0) and c.x1 <= 399.0
     c = clamp(bank, Candidate(0, -3.0, 300.0, 0.0), 1.0, opts)
     assert c.x0 == 0.0 and c.x1 == pytest.approx(200.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), steps=st.floats(5.0, 900.0))
+def test_clamp_many_is_clamp_row_by_row_and_says_which_primitives_are_too_short(seed, steps):
+    bank = _bank()  # primitives of 400 samples: too short above 399 / 0.5 steps
+    opts = SearchOptions(time_scale=(0.5, 2.0))
+    rng = np.random.default_rng(seed)
+    prim = rng.integers(0, 2, size=12)
+    z = np.sort(rng.uniform(-20.0, 420.0, size=(12, 2)), axis=1)
+    out, lo, hi = clamp_many(bank, prim, z, steps * DT / bank.dt, opts)
+    for j in range(12):
+        one = clamp(bank, Candidate(int(prim[j]), z[j, 0], z[j, 1], 0.0), steps * DT, opts)
+        assert (one.x0, one.x1) == (out[j, 0], out[j, 1])
+    assert np.all((hi >= lo) == (0.5 * steps * DT / bank.dt <= 399.0))
+    fit = hi >= lo
+    assert np.all(out[fit, 0] >= 0.0) and np.all(out[fit, 1] <= 399.0)
+    np.testing.assert_allclose(
+        (out[:, 1] - out[:, 0])[fit], np.clip(z[:, 1] - z[:, 0], lo, hi)[fit]
+    )
 
 
 @pytest.mark.parametrize("rotation", ["full", "z", "none"])

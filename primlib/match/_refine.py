@@ -17,6 +17,7 @@ if TYPE_CHECKING:
 __all__ = [
     "refine",
     "clamp",
+    "clamp_many",
     "piece_rmsd",
     "duration_range",
     "solve_box_qp2",
@@ -54,12 +55,44 @@ def duration_range(n_p: int, dq: float, opts: SearchOptions) -> tuple[float, flo
 
 def clamp(bank: BankIndex, cand: Candidate, duration: float, opts: SearchOptions) -> Candidate:
     """The candidate with its duration clipped to the time-scale range (for a query lasting
-    ``duration`` s) and its start moved so it stays inside the primitive."""
-    n_p = int(bank.offsets[cand.prim + 1] - bank.offsets[cand.prim])
-    lo, hi = duration_range(n_p, duration / bank.dt, opts)
-    dur = min(max(cand.x1 - cand.x0, lo), hi)
-    x0 = min(max(cand.x0, 0.0), n_p - 1.0 - dur)
-    return Candidate(cand.prim, x0, x0 + dur, cand.score)
+    ``duration`` s) and its start moved so it stays inside the primitive (one row of
+    :func:`clamp_many`)."""
+    z, _, _ = clamp_many(bank, np.array([cand.prim]), np.array([[cand.x0, cand.x1]]),
+                         duration / bank.dt, opts)  # fmt: skip
+    return Candidate(cand.prim, float(z[0, 0]), float(z[0, 1]), cand.score)
+
+
+def clamp_many(bank: BankIndex, prim: np.ndarray, z: np.ndarray, steps: float,
+               opts: SearchOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """:func:`duration_range` and :func:`clamp` of m candidates at once.
+
+    Parameters
+    ----------
+    bank : BankIndex
+        The primitives.
+    prim : array of int, shape (m,)
+        Each candidate's primitive row.
+    z : array, shape (m, 2)
+        Each candidate's (x0, x1), fractional sample indices.
+    steps : float
+        The query's duration in sample steps of the bank's dt.
+    opts : SearchOptions
+        Its time-scale range.
+
+    Returns
+    -------
+    z : array, shape (m, 2)
+        The clamped (x0, x1): duration clipped to [lo, hi], start moved inside the primitive.
+    lo, hi : arrays, shape (m,)
+        The allowed duration range; a row with ``hi < lo`` is a primitive too short for the
+        time-scale range (its z is then clipped to hi: no candidate of it is allowed).
+    """
+    n_p = bank.offsets[prim + 1] - bank.offsets[prim]
+    hi = np.minimum(opts.time_scale[1] * steps, n_p - 1.0)
+    lo = np.broadcast_to(max(opts.time_scale[0] * steps, 1e-6), hi.shape)
+    span = np.minimum(np.maximum(z[:, 1] - z[:, 0], lo), hi)
+    x0 = np.minimum(np.maximum(z[:, 0], 0.0), n_p - 1.0 - span)
+    return np.stack([x0, x0 + span], axis=1), lo, hi
 
 
 def solve_box_qp2(h: np.ndarray, g: np.ndarray, z: np.ndarray, a: np.ndarray, b: np.ndarray):

@@ -17,7 +17,7 @@ import numpy as np
 from primlib.match._interp import cubic_rows
 from primlib.match._kabsch import _rotation_2d
 from primlib.match._options import Candidate, PathPiece, SearchOptions
-from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, hopeless
+from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, clamp_many, hopeless
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
@@ -127,21 +127,15 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
     out, rmsd = list(cands), np.full(len(cands), np.inf)
     if not cands:
         return out, rmsd
-    # duration_range and clamp of every candidate at once (the same operations)
     prim = np.array([c.prim for c in cands])
-    n_p = bank.offsets[prim + 1] - bank.offsets[prim]
-    lo = np.maximum(opts.time_scale[0] * (dur / bank.dt), 1e-6)
-    hi = np.minimum(opts.time_scale[1] * (dur / bank.dt), n_p - 1.0)
+    z = np.array([[c.x0, c.x1] for c in cands])
+    z, lo, hi = clamp_many(bank, prim, z, dur / bank.dt, opts)
     rows = np.flatnonzero(hi >= lo)
     if rows.size == 0:
         return out, rmsd
-    prim, n_p, hi = prim[rows], n_p[rows], hi[rows]
-    lo = np.broadcast_to(lo, hi.shape)
-    x0 = np.array([cands[i].x0 for i in rows])
-    span = np.minimum(np.maximum(np.array([cands[i].x1 for i in rows]) - x0, lo), hi)
-    x0 = np.minimum(np.maximum(x0, 0.0), n_p - 1.0 - span)
-    z = np.stack([x0, x0 + span], axis=1)
-    cvec = np.stack([np.zeros_like(hi), n_p - 1.0, -lo, hi], axis=1)
+    prim, z = prim[rows], z[rows]
+    last = bank.offsets[prim + 1] - bank.offsets[prim] - 1.0
+    cvec = np.stack([np.zeros(rows.size), last, -lo[rows], hi[rows]], axis=1)
     k = opts.refine_points if points is None else points
     resid = _Residuals(bank, prim, path.at(np.linspace(a, b, k)), opts.rotation)
     zf, cost = _lockstep(resid, z, cvec, target * target * k, give_up * give_up * k, first,

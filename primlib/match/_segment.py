@@ -68,7 +68,7 @@ from primlib.match._grid import GridSearch
 from primlib.match._index_search import IndexSearch
 from primlib.match._kabsch import ROTATION_MODES, kabsch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
-from primlib.match._refine import clamp, piece_rmsd, prim_at
+from primlib.match._refine import piece_rmsd, prim_at
 from primlib.match._refine_many import refine_many
 from primlib.match._reject import rejects
 from primlib.match._types import Segment
@@ -155,20 +155,18 @@ class _Segmenter:
 
     def _try(self, a: float, b: float, seeds: list[Candidate], kc: int):
         """A seed within eps of [a, b] as it comes or once refined (or None), and every
-        seed refined, with its RMSD (inf for a primitive too short for the time scales).
+        seed refined, with its RMSD (those of a primitive too short for the time-scale range
+        left out: :func:`._refine_many.refine_many` clamps the others into it).
 
         The seeds are refined together (:func:`._refine_many.refine_many`) on the check's own
         kc points until one is below eps (a match; one that matches as it comes stops them
         before any step), giving up on those that will not be.
         """
         bank, path, opts, eps = self.bank, self.path, self.opts, self.eps
-        dur = (b - a) * path.duration
-        shortest = opts.time_scale[0] * dur / bank.dt * (1 - 1e-9)
-        # a primitive too short for the time-scale range is clamped below it: not a match
-        cands = [c for c in (clamp(bank, s, dur, opts) for s in seeds) if c.x1 - c.x0 >= shortest]
         # converged to 1e-4 of the cost: the RMSD only places the next split
-        refined, r = refine_many(bank, cands, path, a, b, opts, target=eps * (1 - 1e-9),
+        refined, r = refine_many(bank, seeds, path, a, b, opts, target=eps * (1 - 1e-9),
                                  give_up=eps, first=True, points=kc, rtol=1e-4)  # fmt: skip
+        refined, r = _fitting(refined, r)
         hit = np.flatnonzero(r < eps)
         found = _Found(refined[hit[0]], float(r[hit[0]])) if hit.size else None
         return found, refined, r
@@ -336,15 +334,12 @@ class _Segmenter:
         will not end below the match's RMSD is given up.
         """
         bank, path, opts = self.bank, self.path, self.opts
-        dur = (b - a) * path.duration
-        shortest = opts.time_scale[0] * dur / bank.dt * (1 - 1e-9)
-        seeds = self._seeds_near(a, b)
-        seeds = (clamp(bank, s, dur, opts) for s in seeds)
-        cands = [found.cand, *(c for c in seeds if c.x1 - c.x0 >= shortest)]
+        cands = [found.cand, *self._seeds_near(a, b)]
         kc = path.confirm_points(a, b)
         # a refinement only takes steps that lower the cost (on the check's kc points); to
         # 1e-4 of the cost, as the probes: the last 1e-8 took a third of the steps and only
-        # moved RMSDs in their 6th digit
+        # moved RMSDs in their 6th digit (a primitive too short for the time-scale range
+        # comes back at inf: never the lowest, the match being finite)
         refined, r = refine_many(bank, cands, path, a, b, opts, give_up=found.rmsd, points=kc,
                                  rtol=1e-4)  # fmt: skip
         return refined[int(np.argmin(r))]
@@ -412,6 +407,16 @@ class _Segmenter:
             if progress is not None:
                 progress(ia, last, len(segments))
         return segments
+
+
+def _fitting(refined: list[Candidate], r: np.ndarray) -> tuple[list[Candidate], np.ndarray]:
+    """The refined seeds and RMSDs of :func:`._refine_many.refine_many` without those of a
+    primitive too short for the time-scale range (RMSD inf, left as they came): not matches,
+    nor worth shrinking later (every refined seed's RMSD is finite)."""
+    keep = np.flatnonzero(np.isfinite(r))
+    if keep.size == r.size:
+        return refined, r
+    return [refined[i] for i in keep], r[keep]
 
 
 def _split(lo: int, hi: int, r_lo: float, r_hi: float, eps: float) -> int:
