@@ -155,6 +155,41 @@ def test_a_stretch_nothing_matches_is_reported_not_dropped():
     _check_segments(bank, full, segs, eps)
 
 
+def test_after_a_cut_nothing_matched_from_the_next_start_probes_the_shortest_piece_first(
+    monkeypatch,
+):
+    from primlib.match import _segment
+
+    bank = _library(6, 300, seed=3)
+    rng = np.random.default_rng(9)
+    zig = np.cumsum(rng.choice([-3.0, 3.0], size=(80, 3)), axis=0)
+    tail, _ = _compose(bank, [(4, 0.2, 0.6, 1.0)], seed=6)
+    full = np.concatenate([zig, tail[1:] + zig[-1] - tail[0]])
+    starts: list[tuple[int, int, bool]] = []  # (start, first probe's samples, matched)
+    first_probe: dict[int, int] = {}
+    probe, longest = _segment._Segmenter.probe, _segment._Segmenter.longest_prefix
+
+    def logged_probe(self, a, b):
+        ia = round(a * (self.path.n - 1))
+        first_probe.setdefault(ia, round((b - a) * (self.path.n - 1)) + 1)
+        return probe(self, a, b)
+
+    def logged_longest(self, ia, sig, guess):
+        out = longest(self, ia, sig, guess)
+        starts.append((ia, first_probe.get(ia, 0), out is not None))
+        return out
+
+    monkeypatch.setattr(_segment._Segmenter, "probe", logged_probe)
+    monkeypatch.setattr(_segment._Segmenter, "longest_prefix", logged_longest)
+    segs, _ = segment_path(bank, full, DT, 0.05)
+    assert segs[0].primitive is None and segs[-1].primitive is not None
+    after_failure = [s for prev, s in zip(starts, starts[1:], strict=False) if not prev[2]]
+    assert len(after_failure) >= 3  # the zig-zag takes several starts to cross
+    # the first start probes the whole path; after a failed start, the shortest piece
+    assert starts[0][1] == len(full)
+    assert all(samples == _segment._MIN_SAMPLES for _, samples, _ in after_failure)
+
+
 def test_time_scale_outside_range_is_not_matched():
     bank = _library(3, 300, seed=4)
     pts, _ = _compose(bank, [(1, 0.1, 0.2, 1.0)], seed=1)
