@@ -28,6 +28,24 @@ def test_level_zero_is_uniform_in_arc_length():
         np.testing.assert_allclose(pts.mean(axis=0), 0.0, atol=1e-9 * length)  # centred
 
 
+@pytest.mark.parametrize("j", [0, 2])
+def test_points_lie_on_the_samples_where_their_sample_index_says(j):
+    # each point is the samples linear in the sample index x (taken from x's integer part
+    # and fraction); a primitive's first point is its first sample, at x = 0 exactly
+    bank = _index(301)
+    idx = bank.fine_arc_index(j)
+    lv = idx.levels[0]
+    for prim in (0, 1):
+        on = lv.prim == prim
+        samples = bank.points_of(prim)
+        x = lv.x[on]
+        assert x[0] == 0.0 and np.all(np.diff(x) > 0) and x[-1] <= samples.shape[0] - 1
+        ref = np.stack([np.interp(x, np.arange(samples.shape[0]), c) for c in samples.T], 1)
+        pts = lv.pts[on]
+        # centred per primitive: the differences from the samples are one constant
+        np.testing.assert_allclose(pts - pts[0], ref - ref[0], atol=1e-12 * 90)
+
+
 def test_levels_halve_and_double_the_step():
     idx = _index().arc_index()
     for a, b in zip(idx.levels[:-1], idx.levels[1:], strict=True):
