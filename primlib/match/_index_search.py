@@ -415,12 +415,7 @@ class IndexSearch:
         g = gates.top
         pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, g, math.sqrt(2.0) * g)
         if aq.n_windows <= self.chunk:
-            # few windows (a small library): one batch, one exact scoring; each call costs
-            # more than the windows a threshold would spare
-            ws = np.flatnonzero(gates.valid((0, aq.n_windows)))
-            self.stats.windows += ws.size
-            self.stats.bounded += ws.size
-            self._batch(aq, pool, ws, self.speed_bound(aq, ws), None, gates.at(ws))
+            self._few(aq, gates, pool)
             return pool
         head = np.arange(0, aq.n_windows, self.sample)
         head = head[gates.valid(head)]
@@ -455,6 +450,21 @@ class IndexSearch:
         self.stats.bounded += head.size + rest.size
         self._drain(aq, gates, pool, rest, lbs, lbc, known)
         return pool
+
+    def _few(self, aq: ArcQuery, gates: _Gates, pool: CandidatePool) -> None:
+        """Few windows (a small library, at most ``chunk``): no sample and no screen, every
+        valid window bounded at once and drained best-first (:meth:`_drain`). Scoring them
+        all in one batch, as before, scored twice as many exactly (the 14 bundled
+        primitives: 1,650 windows a query, against 770 once the first batch's threshold
+        prunes), for the same pool."""
+        ws = np.flatnonzero(gates.valid((0, aq.n_windows)))
+        self.stats.windows += ws.size
+        self.stats.bounded += ws.size
+        lbs = self.speed_bound(aq, ws)
+        lb1 = self.first_bound(aq, ws)
+        lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
+        keep = lb1 < gates.at(ws)
+        self._drain(aq, gates, pool, ws[keep], lbs[keep], lbc[keep], True)
 
     def _drain(self, aq: ArcQuery, gates: _Gates, pool: CandidatePool, rest: np.ndarray,
                lbs: np.ndarray, lbc: np.ndarray, known: bool) -> None:  # fmt: skip
