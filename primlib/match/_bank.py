@@ -222,11 +222,13 @@ def _screen(points: np.ndarray, offsets: np.ndarray) -> dict[int, str]:
     out = {int(i): f"{counts[i]} sample(s), 2 needed" for i in np.flatnonzero(counts < 2)}
     if points.size == 0 or len(counts) == 0:
         return out
-    with np.errstate(invalid="ignore"):
-        # the usual bank: every value finite and in range, told by two flat passes (the
-        # per-primitive reductions below cost ten times more on a million samples)
-        if np.isfinite(points).all() and np.abs(points).max() <= MAX_ABS_VALUE:
-            return out
+    # the usual bank: every value finite and in range, told by the smallest and the largest
+    # value (a nan or an inf makes one of them non-finite), two reductions without the
+    # temporaries of np.isfinite and np.abs (3x the time on 6 million values; the
+    # per-primitive reductions below cost ten times more)
+    lo, hi = float(points.min()), float(points.max())
+    if math.isfinite(lo) and math.isfinite(hi) and max(-lo, hi) <= MAX_ABS_VALUE:
+        return out
     starts = offsets[:-1][counts > 0]
     rows = np.flatnonzero(counts > 0)
     with np.errstate(invalid="ignore"):
