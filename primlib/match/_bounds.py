@@ -53,6 +53,7 @@ __all__ = [
     "strided_cumsum",
     "speed_bound",
     "speed_screen",
+    "speed_groups",
 ]
 
 _U = 2.0**-53  # unit round-off of float64
@@ -417,6 +418,18 @@ def strided_cumsum(x: np.ndarray, dil: int) -> tuple[np.ndarray, float, float]:
     return flat, float(np.abs(flat).max(initial=0.0)), float(np.abs(x).max(initial=0.0))
 
 
+def speed_groups(tau_q: np.ndarray, parts: int) -> tuple[tuple[int, int, float], ...]:
+    """The groups of :func:`speed_bound`: (first, end, mean τ_q over the group) for ``parts``
+    groups of the K − 2 inner samples of ``tau_q`` (none when K <= 2). A query's groups
+    are the same for every block of windows: compute them once and pass them on."""
+    inner = tau_q.size - 2
+    if inner <= 0:
+        return ()
+    edges = (1 + np.round(np.linspace(0.0, inner, min(parts, inner) + 1)).astype(int)).tolist()
+    return tuple((s, e, float(np.mean(tau_q[s:e]))) for s, e in zip(edges[:-1], edges[1:],
+                                                                    strict=True))  # fmt: skip
+
+
 def _window_reader(block: tuple[int, int] | np.ndarray):
     """(n, col): the number of windows of ``block`` -- a range (c0, c1) read as slices, or
     an index array of window starts, gathered -- and ``col(a, off)``, the values of ``a``
@@ -435,6 +448,7 @@ def speed_bound(
     tau_q: np.ndarray,
     ell: float,
     parts: int = 4,
+    groups: tuple[tuple[int, int, float], ...] | None = None,
 ) -> np.ndarray:
     """Lower bound of ℓ·RMS(τ_w − τ_q) of windows of K = ``tau_q.size`` points (module notes).
 
@@ -453,6 +467,8 @@ def speed_bound(
         The query's arc length.
     parts : int
         Groups of the K − 2 inner samples (the first and last agree by construction).
+    groups : tuple, optional
+        :func:`speed_groups` of ``tau_q`` and ``parts``, when already computed.
 
     Returns
     -------
@@ -464,21 +480,19 @@ def speed_bound(
     k = tau_q.size
     n, col = _window_reader(starts)
 
-    inner = k - 2
-    if inner <= 0 or n == 0:
+    if k - 2 <= 0 or n == 0:
         return np.zeros(n)
     x0 = col(x, 0)
     dur = col(x, (k - 1) * dil) - x0
     moving = dur > 1e-9
     inv = np.divide(1.0, dur, out=np.ones(n), where=moving)
-    edges = 1 + np.round(np.linspace(0.0, inner, min(parts, inner) + 1)).astype(int)
     acc = np.zeros(n)
-    for s, e in zip(edges[:-1], edges[1:], strict=True):
+    for s, e, mu in speed_groups(tau_q, parts) if groups is None else groups:
         g = col(csum_, e * dil) - col(csum_, s * dil)
         g *= 1.0 / (e - s)
         g -= x0
         g *= inv
-        g -= float(np.mean(tau_q[s:e]))
+        g -= mu
         g *= g
         g *= (e - s) / k
         acc += g
@@ -502,6 +516,7 @@ def speed_screen(
     ell: float,
     limit: float,
     parts: int = 2,
+    groups: tuple[tuple[int, int, float], ...] | None = None,
 ) -> np.ndarray:
     """Mask of the windows c0 <= m < c1 (``block``), or of the windows starting at
     ``block`` (an index array: gathered, for sparse survivors), whose :func:`speed_bound` is
@@ -509,21 +524,20 @@ def speed_screen(
     and h_G = D·(mean_G τ_w − mean_G τ_q), the bound is below the limit unless
     Σ_G |G|/K·h_G² >= (D·(limit/ℓ + 16u + 1e-12) + E)²·(1 + 1e-11), E the round-off
     term of :func:`speed_bound` times D; windows whose x does not advance are kept.
+    ``groups``: :func:`speed_groups` of ``tau_q`` and ``parts``, when already computed (a
+    screen calls this once per block of windows).
     """
     csum_, cmax, xmax = csum
     k = tau_q.size
     n, col = _window_reader(block)
 
-    inner = k - 2
-    if inner <= 0 or not math.isfinite(limit):
+    if k - 2 <= 0 or not math.isfinite(limit):
         return np.ones(n, dtype=bool)
     x0 = col(x, 0)
     xe = col(x, (k - 1) * dil)
     dur = xe - x0
-    edges = 1 + np.round(np.linspace(0.0, inner, min(parts, inner) + 1)).astype(int)
     acc = np.zeros(n)
-    for s, e in zip(edges[:-1], edges[1:], strict=True):
-        mu = float(np.mean(tau_q[s:e]))
+    for s, e, mu in speed_groups(tau_q, parts) if groups is None else groups:
         h = col(csum_, e * dil) - col(csum_, s * dil)
         h *= 1.0 / (e - s)
         h -= x0 * (1.0 - mu)

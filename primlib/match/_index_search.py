@@ -60,6 +60,7 @@ from primlib.match._bounds import (
     principal_bound,
     principal_bound_points,
     speed_bound,
+    speed_groups,
     speed_screen,
 )
 from primlib.match._grid import GridSearch
@@ -94,6 +95,7 @@ class ArcQuery:
     duration: float  # query duration in stored samples
     per_axis: bool
     smoothing: float = 0.0  # RMS deviation of the smoothed piece from the path samples
+    memo: dict = field(default_factory=dict, compare=False, repr=False)  # per-query constants
 
     @property
     def k(self) -> int:
@@ -110,7 +112,19 @@ class ArcQuery:
     @property
     def tau(self) -> np.ndarray:
         """Normalised time within the piece at each arc sample (the speed profile)."""
-        return (self.u - self.u[0]) / max(self.u[-1] - self.u[0], 1e-300)
+        hit = self.memo.get("tau")
+        if hit is None:
+            hit = self.memo["tau"] = (self.u - self.u[0]) / max(self.u[-1] - self.u[0], 1e-300)
+        return hit
+
+    def groups(self, parts: int) -> tuple[tuple[int, int, float], ...]:
+        """:func:`~._bounds.speed_groups` of :attr:`tau` (once per query: a screen asks for
+        them for every block of windows)."""
+        key = ("groups", parts)
+        hit = self.memo.get(key)
+        if hit is None:
+            hit = self.memo[key] = speed_groups(self.tau, parts)
+        return hit
 
 
 @dataclass(frozen=True)
@@ -266,14 +280,15 @@ class IndexSearch:
         (:meth:`_combine`, :func:`._bounds.speed_bound`) of windows ``ws`` (an index array,
         or a range (c0, c1))."""
         csum = aq.index.x_sums(aq.jb, aq.dil)
-        return speed_bound(csum, aq.level.x, ws, aq.dil, aq.tau, aq.ell, parts)
+        return speed_bound(csum, aq.level.x, ws, aq.dil, aq.tau, aq.ell, parts, aq.groups(parts))
 
     def speed_screen(self, aq: ArcQuery, block: tuple[int, int] | np.ndarray,
                      tau: float) -> np.ndarray:  # fmt: skip
         """Mask of the windows in ``block`` (a range, or an index array) whose speed bound
         with 2 groups is below ``tau`` (:func:`._bounds.speed_screen`)."""
         csum = aq.index.x_sums(aq.jb, aq.dil)
-        return speed_screen(csum, aq.level.x, block, aq.dil, aq.tau, aq.ell, tau)
+        return speed_screen(csum, aq.level.x, block, aq.dil, aq.tau, aq.ell, tau,
+                            groups=aq.groups(2))  # fmt: skip
 
     def in_range(self, aq: ArcQuery, ws: np.ndarray | tuple[int, int],
                  screen: bool = False) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
