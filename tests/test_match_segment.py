@@ -190,6 +190,35 @@ def test_after_a_cut_nothing_matched_from_the_next_start_probes_the_shortest_pie
     assert all(samples == _segment._MIN_SAMPLES for _, samples, _ in after_failure)
 
 
+def test_the_best_primitive_is_chosen_among_the_failed_search_s_seeds_without_a_new_search():
+    from primlib.match._options import Candidate, SearchStats
+    from primlib.match._segment import _Segmenter
+
+    class Recorder:
+        stats = SearchStats()
+        calls: list[tuple[float, float]] = []
+
+        def seeds(self, path, a, b, eps):
+            self.calls.append((a, b))
+            return []
+
+    bank = _library(2, 120, seed=1)
+    n = 50
+    path = PathPiece(bank.points_of(0)[:n], (n - 1) * DT)
+    seg = _Segmenter(Recorder(), bank, path, 0.05, SearchOptions())
+    seg.sig = 1
+    last, v = n - 1, 1.0 / (n - 1)
+    ia = 5  # 5 * (1 / 49) != 5 / 49: the probes' and the segment's a differ in the last bit
+    assert ia * v != ia / last
+    seeds = [Candidate(1, 10.0, 40.0, 0.0)]
+    seg.failed = (ia * v, 31 * v, seeds, seeds)
+    near = seg._seeds_near(ia / last, 30 / last)  # one sample shorter, as segment() asks
+    assert Recorder.calls == []
+    assert near[0].x1 - near[0].x0 == pytest.approx(30.0 * 25 / 26)
+    seg._seeds_near(ia / last, 28 / last)  # two samples shorter than the failed search: new
+    assert len(Recorder.calls) == 1
+
+
 def test_time_scale_outside_range_is_not_matched():
     bank = _library(3, 300, seed=4)
     pts, _ = _compose(bank, [(1, 0.1, 0.2, 1.0)], seed=1)

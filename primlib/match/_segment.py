@@ -348,10 +348,13 @@ class _Segmenter:
 
     def _seeds_near(self, a: float, b: float) -> list[Candidate]:
         """Seeds for [a, b]: the last failing whole search's when it started at a and ended
-        at most σ after b (shrunk to [a, b]), else a new search."""
+        at most σ after b (shrunk to [a, b]), else a new search. Starts are compared in
+        samples: the probes' a = i·(1/(n − 1)) and the segment's i/(n − 1) may differ in
+        their last bit."""
         if self.failed is not None:
             fa, fb, seeds, _ = self.failed
-            if fa == a and 0 < (fb - b) * (self.path.n - 1) <= self.sig + 1e-6:
+            last = self.path.n - 1
+            if abs(fa - a) * last < 1e-6 and 0 < (fb - b) * last <= self.sig + 1e-6:
                 k = (b - a) / (fb - a)
                 return [Candidate(c.prim, c.x0, c.x0 + k * (c.x1 - c.x0), c.score) for c in seeds]
         return self.seeder.seeds(self.path, a, b, self.eps)
