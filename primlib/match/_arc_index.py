@@ -197,9 +197,10 @@ def _at_samples(sm: ArcSamples, offsets: np.ndarray, n_lv0: np.ndarray, x: np.nd
     (a 2-million-point index builds in 0.24 s instead of 0.31 s).
     """
     seg = np.floor(x).astype(np.int64)
-    # the segment within its primitive: the last sample starts none
-    np.minimum(seg, np.repeat(np.diff(offsets) - 2, n_lv0), out=seg)
-    np.maximum(seg, 0, out=seg)
+    # the segment within its primitive: the last sample starts none, and only a primitive's
+    # last point can lie on it (x >= 0 holds already)
+    last = np.cumsum(n_lv0) - 1
+    seg[last] = np.minimum(seg[last], np.diff(offsets) - 2)
     f = x - seg
     seg += np.repeat(offsets[:-1], n_lv0)
     lo = np.take(sm.points, seg, axis=0)
