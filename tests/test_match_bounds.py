@@ -17,6 +17,7 @@ from primlib.match._bounds import (
     principal_bound,
     principal_bound_points,
     speed_bound,
+    speed_groups,
     speed_screen,
     strided_cumsum,
     strided_prefix_sums,
@@ -215,6 +216,9 @@ def test_speed_bound_never_exceeds_the_exact_speed_term(seed, k, dil, parts, off
     sliced = speed_bound(csum, x, (0, n), dil, tau_q, ell, parts)
     gathered = speed_bound(csum, x, np.arange(n), dil, tau_q, ell, parts)
     np.testing.assert_allclose(sliced, gathered, rtol=1e-14, atol=1e-14 * ell)
+    # the groups computed once for a query (as the screen passes them): the same bound
+    given = speed_bound(csum, x, (0, n), dil, tau_q, ell, parts, speed_groups(tau_q, parts))
+    np.testing.assert_array_equal(given, sliced)
     assert np.all(sliced <= exact + 1e-12 * ell), np.max(sliced - exact)
     # the screen keeps every window whose bound (so every one whose exact term) is below
     # the limit, and drops most of the others
@@ -227,6 +231,10 @@ def test_speed_bound_never_exceeds_the_exact_speed_term(seed, k, dil, parts, off
         some = np.flatnonzero(rng.random(n) < 0.3)
         np.testing.assert_array_equal(
             speed_screen(csum, x, some, dil, tau_q, ell, limit), kept[some]
+        )
+        groups = speed_groups(tau_q, 2)
+        np.testing.assert_array_equal(
+            speed_screen(csum, x, (0, n), dil, tau_q, ell, limit, groups=groups), kept
         )
 
 
