@@ -171,6 +171,16 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         print(f"| {label} | {med:.2f} | {cpu:.2f} | {max(r['times']):.2f} | {nseg:g} | "
               f"{100 * statistics.median(r['fraction']):.0f} % | {base} | {base_cpu} | {ratio} "
               f"| {cpu_ratio} |")  # fmt: skip
+    if old is not None:
+        print("\nCPU seconds path by path, this tree / baseline (ratio):")
+        for label in spec["cases"]:
+            print(f"- {label}: {_per_path(new[label]['cpu'], old[label]['cpu'])}")
+
+
+def _per_path(cpu: list[float], base: list[float]) -> str:
+    """Each path's CPU time beside the baseline's (paths differ several-fold in cost, so a
+    median of each side alone can pick different paths' times on a loaded machine)."""
+    return ", ".join(f"{c:.2f} / {b:.2f} ({b / c:.2f}x)" for c, b in zip(cpu, base, strict=True))
 
 
 def main() -> None:
