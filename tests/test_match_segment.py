@@ -155,7 +155,7 @@ def test_a_stretch_nothing_matches_is_reported_not_dropped():
     _check_segments(bank, full, segs, eps)
 
 
-def test_after_a_cut_nothing_matched_from_the_next_start_probes_the_shortest_piece_first(
+def test_before_the_first_match_a_failed_start_is_followed_by_the_shortest_probe(
     monkeypatch,
 ):
     from primlib.match import _segment
@@ -185,7 +185,8 @@ def test_after_a_cut_nothing_matched_from_the_next_start_probes_the_shortest_pie
     assert segs[0].primitive is None and segs[-1].primitive is not None
     after_failure = [s for prev, s in zip(starts, starts[1:], strict=False) if not prev[2]]
     assert len(after_failure) >= 3  # the zig-zag takes several starts to cross
-    # the first start probes the whole path; after a failed start, the shortest piece
+    # the first start probes the whole path; after a failed start (no match yet), the
+    # shortest piece: the whole remainder and its halves would fail again
     assert starts[0][1] == len(full)
     assert all(samples == _segment._MIN_SAMPLES for _, samples, _ in after_failure)
 

@@ -17,20 +17,18 @@ Where this differs from the paper (for speed; the answer is the same wherever "p
 matches" is monotone in b, and always a prefix that matches followed by one that does not):
 
 * The first probe from a cut is as long as the previous segment (the whole remainder for
-  the first cut; the shortest probe after a cut nothing matched from, the next start being
-  most likely in the same unmatched stretch); while it fails, the failing search's seeds
-  are tried shrunk (at their time scales) to where their RMSD predicts ε and to half the
-  length, then a whole search at half the length. From the first match the split gallops
-  (to where the match's RMSD, growing like L², predicts ε: 1/8 to 2× longer), then narrows
-  the bracket between the longest prefix that matched and the shortest that failed down to
-  σ, placing each split where a power law r ∝ Lᵖ through both ends' RMSDs reaches ε
-  (regula falsi in log-log, Illinois-damped; the midpoint while an end's RMSD is
-  unknown). On a path the library
-  does not hold, segments are a few dozen samples long and the paper's first probes (the
-  remainder, its half, ...) all fail; starting from the previous length skips them. The
-  trade-off: a prefix much longer than the last one that matched, after a shorter one
-  failed, is not looked for (a non-monotone case; the paper's halving finds it only when it
-  lies on its probe points).
+  the first cut, the shortest piece after a first cut nothing matched from); while it
+  fails, the failing search's seeds are tried shrunk (at their time scales) to where their
+  RMSD predicts ε and to half the length, then a whole search at half the length. From the
+  first match the split gallops (to where the match's RMSD, growing like L², predicts ε:
+  1/8 to 2× longer), then narrows the bracket between the longest prefix that matched and
+  the shortest that failed down to σ, placing each split where a power law r ∝ Lᵖ through
+  both ends' RMSDs reaches ε (regula falsi in log-log, Illinois-damped; the midpoint while
+  an end's RMSD is unknown). On a path the library does not hold, segments are a few dozen
+  samples long and the paper's first probes (the remainder, its half, ...) all fail;
+  starting from the previous length skips them. The trade-off: a prefix much longer than
+  the last one that matched, after a shorter one failed, is not looked for (a non-monotone
+  case; the paper's halving finds it only when it lies on its probe points).
 * Inside that search a probe only stretches the match of the longest prefix so far to the
   new length at the same time scale and refines it until it matches or will not
   (:meth:`_Segmenter.extend`, a few Gauss–Newton steps of one candidate, none when the
@@ -409,10 +407,12 @@ class _Segmenter:
                 segments.append(_unmatched(ia / last, ib / last, d))
             ia = ib
             advance *= 2
-            # nothing matched down to the shortest probe: the next start is most likely in
-            # the same unmatched stretch, so its first probe is the shortest one (one whole
-            # search; a match there gallops up through extensions, not halving searches)
-            guess = _MIN_SAMPLES - 1
+            if guess == last:
+                # nothing matched yet, not even the shortest piece: the whole remainder (and
+                # its halves) will fail from the next start too; its first probe is the
+                # shortest piece (one whole search; a match there gallops up through
+                # extensions)
+                guess = _MIN_SAMPLES - 1
             if progress is not None:
                 progress(ia, last, len(segments))
         return segments
