@@ -1,0 +1,42 @@
+"""Smoke test of benchmarks/bench_seed_search.py: the index searches of one short novel path
+against the bundled library, recorded and answered again by the worker; a moved seed end is
+told apart."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import pickle
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_seed_search.py"
+
+
+def _bench():
+    sys.path.insert(0, str(BENCH.parent))  # it imports bench_match_novel as the script does
+    spec = importlib.util.spec_from_file_location("bench_seed_search", BENCH)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench
+
+
+@pytest.mark.slow
+def test_recorded_queries_are_answered_again(tmp_path):
+    bench = _bench()
+    asked = bench.record("bundled", 1, samples=600)
+    assert asked and all(0.0 <= q["a"] < q["b"] <= 1.0 and q["eps"] > 0 for q in asked)
+    with open(tmp_path / "q.pkl", "wb") as f:
+        pickle.dump(asked, f)
+    out = bench.worker({"library": "bundled", "queries": str(tmp_path / "q.pkl")})
+    assert len(out["seeds"]) == len(asked) and out["first"] > 0 and out["warm"] > 0
+    assert any(out["seeds"]) and bench._same(out["seeds"], out["seeds"]) == 0
+    json.dumps(out)  # what the worker prints
+    # a moved end is told apart
+    i = next(i for i, s in enumerate(out["seeds"]) if s)
+    moved = [list(s) for s in out["seeds"]]
+    p, x0, x1 = moved[i][0]
+    moved[i][0] = (p, x0, x1 + 1e-3)
+    assert bench._same(moved, out["seeds"]) == 1
