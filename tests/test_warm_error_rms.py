@@ -191,8 +191,11 @@ def test_a_stored_signal_known_exact_is_kept_whole(noisy_library):
 
 def test_the_model_error_leaves_out_what_the_inverse_leaves_of_the_path():
     # pairs the machine itself made (y = G u, u with steps): the model is exact, yet its
-    # inverse leaves out the band of the sampling zeros, so its cross-validated error on
-    # these paths is that gap; the mismatch the warm start predicts from is ~0
+    # inverse leaves out the band of the sampling zeros. The fit's target is the model's
+    # output error for the stored input, G u - y, which leaves that gap out: the terms find
+    # nothing to fit (fitted to the gap they took half of it, with structure no new path
+    # shares), the cross-validated error and the mismatch the warm start predicts from are
+    # ~0, and the gap is reported on its own
     from primlib.greybox import fit_greybox
     from primlib.pipeline._greywarm import bank_pairs, model_error
 
@@ -211,9 +214,12 @@ def test_the_model_error_leaves_out_what_the_inverse_leaves_of_the_path():
         gap = np.sqrt(np.sum(gb.gap_pairs**2, axis=1))
         cv = np.sqrt(np.sum(gb.cv_pairs**2, axis=1))
         assert np.all(gap > 1e-3 * np.max(np.abs(bank.points)))
-        # the terms may take a little of the gap (it has structure), never add to it
-        assert np.all(cv <= gap * (1 + 1e-6)) and np.all(cv > 0.5 * gap)
-        assert model_error(gb, bank) < 1e-3 * np.min(gap)
+        # what is left is the stored path's own departure from the machine's output (the
+        # NURBS through its samples, resampled: ~1 % of the gap here); before, the target
+        # held the gap itself and the cross-validated error was 0.5-1 times it
+        assert np.all(cv < 0.05 * gap)
+        assert np.all(gb.coef == 0)
+        assert model_error(gb, bank) < 0.05 * np.min(gap)
         p = bank_pairs(bank)[0]
         np.testing.assert_allclose(np.sqrt(np.mean(gb.inverse_gap(p.y) ** 2, axis=0)),
                                    gb.gap_pairs[0])  # fmt: skip

@@ -158,24 +158,23 @@ def model_error(gb: GreyBox, bank: Bank, spread: float = 1.0) -> float:
     the model gets wrong, the gap its inverse leaves aside.
 
     The grey-box model's cross-validated output error compares the model's response to each
-    stored input with the stored path, so on each primitive it holds three independent
-    parts: what the model gets wrong about the machine (m_i), what the linear model's own
-    inverse leaves of that path (g_i, ``GreyBox.gap_pairs``: a property of the path, which
-    a new path has its own of), and the error that primitive's input left on the machine
-    (noise that ILC learned into it, mostly: its recorded ``error_rms`` e_i; none where the
-    library knows none): r_i^2 = m_i^2 + g_i^2 + e_i^2. This is max(r_i^2 - g_i^2 - e_i^2,
-    0) averaged over the samples. With ``spread`` > 1 each e_i is taken ``spread`` times
-    larger: a lower bound where the recorded errors understate the truth by at most that
-    factor.
+    stored input with the stored path, so on each primitive it holds two independent parts:
+    what the model gets wrong about the machine (m_i) and the error that primitive's input
+    left on the machine (noise that ILC learned into it, mostly: its recorded ``error_rms``
+    e_i; none where the library knows none): r_i^2 = m_i^2 + e_i^2. (What the linear
+    model's own inverse leaves of that path, ``GreyBox.gap_pairs``, is not in it: the fit's
+    target leaves it out; a new path has its own gap, added where it is used.) This is
+    max(r_i^2 - e_i^2, 0) averaged over the samples. With ``spread`` > 1 each e_i is taken
+    ``spread`` times larger: a lower bound where the recorded errors understate the truth by
+    at most that factor.
     """
     rows = _paired(bank)
     counts = np.diff(np.asarray(bank.offsets)).astype(float)[rows]
     errors = spread * _known_errors(bank)[rows]
     r2 = np.sum(gb.cv_pairs**2, axis=1)
-    g2 = np.sum(gb.gap_pairs**2, axis=1) if gb.gap_pairs is not None else np.zeros_like(r2)
     fitted = np.isfinite(r2)
     n = counts[fitted]
-    m2 = np.maximum(r2[fitted] - g2[fitted] - errors[fitted] ** 2, 0.0)
+    m2 = np.maximum(r2[fitted] - errors[fitted] ** 2, 0.0)
     return float(np.sqrt(np.sum(n * m2) / max(np.sum(n), 1.0)))
 
 
