@@ -56,7 +56,7 @@ _MAX_ROWS = 400_000  # rows per axis fitted (pairs beyond are subsampled evenly)
 _SEARCH_ROWS = 40_000  # rows the ripple-frequency grid is evaluated on
 _GRID_MAX = 4000  # ripple frequencies tried at most
 _BATCH = 64  # ripple frequencies scored per batch
-_POLISH_PERIODS = 10  # ripple periods over the positions covered before w is polished
+_POLISH_PERIODS = 5  # ripple periods over the positions covered before w is polished
 _LIN = [TERMS.index(t) for t in LINEAR]
 _NONLIN = [TERMS.index(t) for t in NONLINEAR + POSITION]
 _FRICTION = [TERMS.index(t) for t in NONLINEAR]
@@ -356,13 +356,16 @@ def _axis_fit(row: dict, linear: bool = True):
     if w > 0:
         err_r = _cv_ripple(row, Fo, ro, cols)
         if _rms(err_r) < _GAIN * _rms(best):
-            # the polish only where several primitives cover many periods: over a few
+            # the polish only where several primitives cover several periods: over a few
             # periods of a long pitch it fits other structure (friction at the reversals)
             # instead (the example stage, 30 mm pitch: the walk-through's one glyph, pitch
             # 30 -> 30.3 mm and the rotated glyph 0.049 -> 0.11 mm; three loops over 100 mm,
-            # a new path 4 % worse). Cross-validation cannot judge it: the held-out error of
-            # a frequency moved by 5e-5 is buried in the inverse's gap and the stored
-            # inputs' own errors (it chose the unpolished x of bench_realism's ripple
+            # 3.3 periods, a new path 0.6-4 % worse), where bench_realism's z axis, 6.6
+            # periods over 33 mm, is left 2.6e-4 off unpolished (0.01 rad 30 mm up: the
+            # rotated paths' model-only input 0.00036 mm, 0.00014 polished). Cross-
+            # validation could not judge it while the fit's target held the inverse's gap:
+            # the held-out error of a frequency moved by 5e-5 was buried in it and the
+            # stored inputs' own errors (it chose the unpolished x of bench_realism's ripple
             # setting, 0.0013 of its 0.33 amplitude left against 0.0007 polished)
             span = float(np.ptp(row["pos"][np.isfinite(row["pos"])]))
             if len(row["starts"]) > 2 and span * w >= 2 * np.pi * _POLISH_PERIODS:
