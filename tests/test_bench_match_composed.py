@@ -3,24 +3,18 @@ worker ``bench_match.py --composed`` runs with this tree and a baseline revision
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import pytest
+from bench_import import benchmark_modules
 
 ROOT = Path(__file__).resolve().parents[1]
-BENCH = ROOT / "benchmarks"
 
 
 @pytest.fixture(scope="module")
 def composed():
-    sys.path.insert(0, str(BENCH))
-    try:
-        import _composed
-
-        yield _composed
-    finally:
-        sys.path.remove(str(BENCH))
+    with benchmark_modules("_composed") as (module,):
+        yield module
 
 
 def test_worker_times_the_composed_path_and_recovers_its_pieces(composed):

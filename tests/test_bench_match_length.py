@@ -4,27 +4,17 @@ process (its peak memory reported), and the index's DuckDB round trip."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
+from bench_import import benchmark_modules
 
 from primlib.match import BankIndex
-
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture(scope="module")
 def modules():
-    sys.path.insert(0, str(BENCH))
-    try:
-        import _index_persist
-        import _length_scaling
-
-        yield _length_scaling, _index_persist
-    finally:
-        sys.path.remove(str(BENCH))
+    with benchmark_modules("_length_scaling", "_index_persist") as found:
+        yield found
 
 
 @pytest.mark.slow

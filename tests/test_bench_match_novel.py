@@ -3,23 +3,14 @@ worker, and the report printing it beside a baseline (here the same run)."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
-
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+from bench_import import benchmark_modules
 
 
 @pytest.fixture(scope="module")
 def bench():
-    sys.path.insert(0, str(BENCH))
-    try:
-        import bench_match_novel
-
-        yield bench_match_novel
-    finally:
-        sys.path.remove(str(BENCH))
+    with benchmark_modules("bench_match_novel") as (module,):
+        yield module
 
 
 def test_worker_matches_a_short_novel_path_and_the_report_compares_path_by_path(bench, capsys):
