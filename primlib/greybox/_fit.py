@@ -425,7 +425,7 @@ def _cv_ripple(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int]) -> np
 def _stack(machine: Machine, pairs: Sequence[Pair]):
     """Per axis the rows of every pair: regressors (w = 0), input residual, absolute
     position (NaN unknown), step per sample, CV fold, where each pair starts, the model,
-    the inverse's gap; and each pair's linear-model inverse and gap (n, d)."""
+    the inverse's gap; and each pair's gap (n, d)."""
     d = machine.dim
     u_lins = [_model_inverse(machine, p.y) for p in pairs]
     gaps = [_gap(machine, p.y, ul) for p, ul in zip(pairs, u_lins, strict=True)]
@@ -455,7 +455,7 @@ def _stack(machine: Machine, pairs: Sequence[Pair]):
         num_u, _, den = loops[i]
         rows.append(dict(zip(("F", "r", "pos", "step", "folds"), cat, strict=True)))
         rows[-1].update(starts=starts, tf=(num_u, den), gap=np.concatenate([g[:, i] for g in gaps]))
-    return speed, rows, u_lins, gaps
+    return speed, rows, gaps
 
 
 def _checked_pairs(machine: Machine, pairs: Sequence[Pair]) -> list[Pair]:
@@ -519,7 +519,7 @@ def fit_greybox(machine: Machine, pairs: Sequence[Pair], *, linear: bool = True)
     given = _checked_pairs(machine, pairs)
     used = _thin(given)
     pairs = [given[i] for i in used]
-    speed, rows, u_lins, gap_series = _stack(machine, pairs)
+    speed, rows, gap_series = _stack(machine, pairs)
     d = machine.dim
     coef = np.zeros((d, len(TERMS)))
     w, cv, cv_lin, rms0 = np.zeros(d), np.zeros(d), np.zeros(d), np.zeros(d)
