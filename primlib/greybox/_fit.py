@@ -60,6 +60,7 @@ _POLISH_PERIODS = 5  # ripple periods over the positions covered before w is pol
 _LIN = [TERMS.index(t) for t in LINEAR]
 _NONLIN = [TERMS.index(t) for t in NONLINEAR + POSITION]
 _FRICTION = [TERMS.index(t) for t in NONLINEAR]
+_RIPPLE = [TERMS.index(t) for t in POSITION]  # the last columns: the others come before
 
 
 @dataclass(frozen=True)
@@ -244,7 +245,7 @@ def _with_ripple(F: np.ndarray, pos: np.ndarray, step: np.ndarray, w: float) -> 
     G = F.copy()
     known = np.isfinite(pos)
     cols = ripple_columns(np.where(known, pos, 0.0), step, w)
-    G[:, 6:8] = np.where(known[:, None], cols, 0.0)
+    G[:, _RIPPLE] = np.where(known[:, None], cols, 0.0)
     return G
 
 
@@ -292,7 +293,7 @@ def _ripple_search(F: np.ndarray, r: np.ndarray, pos: np.ndarray, step: np.ndarr
     if w_hi <= w_lo:
         return 0.0
     every = max(1, F.shape[0] // _SEARCH_ROWS)
-    A, x, rr = F[::every, :6], np.where(known, pos, 0.0)[::every], r[::every]
+    A, x, rr = F[::every, : _RIPPLE[0]], np.where(known, pos, 0.0)[::every], r[::every]
     dxs = step[::every]
     on = known[::every]
     scale = np.sqrt(np.mean(A**2, axis=0))
@@ -369,9 +370,9 @@ def _axis_fit(row: dict, linear: bool = True):
             # setting, 0.0013 of its 0.33 amplitude left against 0.0007 polished)
             span = float(np.ptp(row["pos"][np.isfinite(row["pos"])]))
             if len(row["starts"]) > 2 and span * w >= 2 * np.pi * _POLISH_PERIODS:
-                w = _ripple_polish(row, Fo, ro, cols + [6, 7], w, _grid_step(span))
+                w = _ripple_polish(row, Fo, ro, cols + _RIPPLE, w, _grid_step(span))
             Go = _ripple_columns(row, Fo, w)
-            return _solve(Go, ro, cols + [6, 7]), w, err_r, _rms(err_lin), rms0
+            return _solve(Go, ro, cols + _RIPPLE), w, err_r, _rms(err_lin), rms0
     return _solve(Fo, ro, cols), 0.0, best, _rms(err_lin), rms0
 
 
@@ -401,9 +402,9 @@ def _ripple_columns(row: dict, Fo: np.ndarray, w: float) -> np.ndarray:
     """``Fo`` with the ripple columns at ``w``, run through the model like the others."""
     b, a = row["tf"]
     G = _through_model(
-        _with_ripple(row["F"], row["pos"], row["step"], w)[:, 6:], row["starts"], b, a
+        _with_ripple(row["F"], row["pos"], row["step"], w)[:, _RIPPLE], row["starts"], b, a
     )
-    return np.concatenate([Fo[:, :6], G], axis=1)
+    return np.concatenate([Fo[:, : _RIPPLE[0]], G], axis=1)
 
 
 def _cv_ripple(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int]) -> np.ndarray:
@@ -416,7 +417,7 @@ def _cv_ripple(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int]) -> np
         test = folds == k
         train = ~test
         w = _ripple_search(row["F"][train], row["r"][train], row["pos"][train], row["step"][train])
-        G, use = (Fo, cols) if w <= 0 else (_ripple_columns(row, Fo, w), cols + [6, 7])
+        G, use = (Fo, cols) if w <= 0 else (_ripple_columns(row, Fo, w), cols + _RIPPLE)
         c = _solve(G[train], ro[train], use)
         err[test] = ro[test] - G[test] @ c
     return err
