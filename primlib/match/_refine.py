@@ -47,10 +47,13 @@ def piece_rmsd(
     return kabsch(p, q, rotation=rotation)
 
 
-def duration_range(n_p: int, dq: float, opts: SearchOptions) -> tuple[float, float]:
+def duration_range(
+    n_p: int | np.ndarray, dq: float, opts: SearchOptions
+) -> tuple[float, float | np.ndarray]:
     """Allowed candidate duration (in samples) for a query of ``dq`` samples' duration in a
-    primitive of ``n_p`` samples: the time-scale range, clipped to the primitive."""
-    return max(opts.time_scale[0] * dq, 1e-6), min(opts.time_scale[1] * dq, n_p - 1.0)
+    primitive of ``n_p`` samples (an int, or an array of them: the upper end per entry):
+    the time-scale range, clipped to the primitive."""
+    return max(opts.time_scale[0] * dq, 1e-6), np.minimum(opts.time_scale[1] * dq, n_p - 1.0)
 
 
 def clamp(bank: BankIndex, cand: Candidate, duration: float, opts: SearchOptions) -> Candidate:
@@ -88,8 +91,8 @@ def clamp_many(bank: BankIndex, prim: np.ndarray, z: np.ndarray, steps: float,
         time-scale range (its z is then clipped to hi: no candidate of it is allowed).
     """
     n_p = bank.offsets[prim + 1] - bank.offsets[prim]
-    hi = np.minimum(opts.time_scale[1] * steps, n_p - 1.0)
-    lo = np.broadcast_to(max(opts.time_scale[0] * steps, 1e-6), hi.shape)
+    low, hi = duration_range(n_p, steps, opts)
+    lo = np.broadcast_to(low, hi.shape)
     span = np.minimum(np.maximum(z[:, 1] - z[:, 0], lo), hi)
     x0 = np.minimum(np.maximum(z[:, 0], 0.0), n_p - 1.0 - span)
     return np.stack([x0, x0 + span], axis=1), lo, hi
