@@ -47,7 +47,6 @@ if __name__ == "__main__":  # timed single-threaded; a test importing this keeps
 
 import argparse  # noqa: E402
 import statistics  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -61,6 +60,7 @@ from _index_persist import compare as index_read_vs_build  # noqa: E402
 from _length_scaling import bank_of  # noqa: E402
 from _length_scaling import run as run_length  # noqa: E402
 from _reference_search import reference_segment_path  # noqa: E402
+from _revisions import alternated, extract  # noqa: E402
 from _timing import median_time  # noqa: E402
 
 from primlib.match import BankIndex, kabsch, match_path, segment_path  # noqa: E402
@@ -166,29 +166,6 @@ def _length_goal(n: int, grow: float, ratio: float, r: dict) -> str:
     return "; ".join(parts) or "-"
 
 
-def _alternated(worker: str, arg: str, baseline: str, rounds: int) -> dict[str, list]:
-    """Run ``benchmarks/<worker> --worker <arg>`` with this tree's primlib and with revision
-    ``baseline``'s (extracted by ``git archive``), alternated ``rounds`` times, each in its
-    own single-threaded process; each run's last output line, parsed as JSON, per tree."""
-    import json
-
-    script = str(Path(__file__).resolve().parent / worker)
-    res: dict[str, list] = {"this tree": [], baseline: []}
-    with tempfile.TemporaryDirectory(prefix="bench_match_base_") as folder:
-        tar = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "primlib"],
-                             capture_output=True, check=True).stdout  # fmt: skip
-        subprocess.run(["tar", "-x", "-C", folder], input=tar, check=True)
-        trees = {"this tree": str(ROOT), baseline: folder}
-        for r in range(rounds):
-            for label in list(trees) if r % 2 == 0 else list(trees)[::-1]:
-                env = dict(os.environ, PYTHONPATH=trees[label], OMP_NUM_THREADS="1",
-                           OPENBLAS_NUM_THREADS="1")  # fmt: skip
-                out = subprocess.run([sys.executable, script, "--worker", arg], env=env,
-                                     capture_output=True, text=True, check=True)  # fmt: skip
-                res[label].append(json.loads(out.stdout.strip().splitlines()[-1]))
-    return res
-
-
 def composed(baseline: str, rounds: int = 2) -> None:
     """``--composed``: the composed path's first call (median of 3 fresh opens) and warm
     call (median of 5) against 1,000 primitives, this tree and revision ``baseline``
@@ -197,7 +174,7 @@ def composed(baseline: str, rounds: int = 2) -> None:
     import json
 
     spec = json.dumps({"k": 1000, "first": 3, "warm": 5, "root": str(ROOT)})
-    res = _alternated("_composed.py", spec, baseline, rounds)
+    res = alternated(ROOT / "benchmarks" / "_composed.py", spec, baseline, rounds)
     new, old = res["this tree"], res[baseline]
     assert all(r["segments"] == new[0]["segments"] for r in new + old), "segments differ"
     print(f"\ncomposed path, 1,000 primitives ({rounds} rounds alternated; baseline git "
@@ -217,7 +194,7 @@ def index_build_baseline(baseline: str, rounds: int = 3) -> None:
     median of 5) with this tree and revision REV, alternated ``rounds`` times, each in its
     own process."""
 
-    res = _alternated("_index_persist.py", "5", baseline, rounds)
+    res = alternated(ROOT / "benchmarks" / "_index_persist.py", "5", baseline, rounds)
     a, b = statistics.median(res["this tree"]), statistics.median(res[baseline])
     print(f"index build alone (arc-length index + envelopes, 1,000 primitives; {rounds} rounds "
           f"alternated): this tree {a:.3f} s, git revision {baseline} {b:.3f} s, "
@@ -291,10 +268,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory(prefix="bench_length_") as folder:
             base = None
             if args.baseline:
-                tar = subprocess.run(["git", "-C", str(ROOT), "archive", args.baseline, "primlib"],
-                                     capture_output=True, check=True).stdout  # fmt: skip
-                subprocess.run(["tar", "-x", "-C", folder], input=tar, check=True)
-                base = Path(folder)
+                base = extract(args.baseline, folder)
             length_scaling(args.length, baseline=base)
         if args.baseline:
             print(f"baseline: git revision {args.baseline}")

@@ -28,11 +28,11 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _revisions import extract, run_worker
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = {"default": {}, "rotation none": {"rotation": "none"}, "time scale 1-1": {
@@ -106,13 +106,6 @@ def worker(spec: dict) -> dict:
     return out
 
 
-def _run(tree: Path, spec: dict) -> dict:
-    env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    res = subprocess.run([sys.executable, __file__, "--worker", json.dumps(spec)], env=env,
-                         capture_output=True, text=True, check=True)  # fmt: skip
-    return json.loads(res.stdout.strip().splitlines()[-1])
-
-
 def _merge(into: dict, more: dict) -> None:
     """Append one worker's per-path lists to ``into`` (case by case)."""
     for label, r in more.items():
@@ -121,13 +114,6 @@ def _merge(into: dict, more: dict) -> None:
                 into.setdefault(label, {}).setdefault(key, []).extend(values)
         else:
             into[label] = r
-
-
-def _baseline_tree(rev: str, tmp: str) -> Path:
-    tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "primlib"],
-                         capture_output=True, check=True).stdout  # fmt: skip
-    subprocess.run(["tar", "-x", "-C", tmp], input=tar, check=True)
-    return Path(tmp)
 
 
 def _compare(new: list, old: list, last: int) -> str:
@@ -230,16 +216,16 @@ def main() -> None:
                       "cases": ["default"]})  # fmt: skip
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     with tempfile.TemporaryDirectory(prefix="bench_novel_") as tmp:
-        old_tree = None if args.no_baseline else _baseline_tree(args.baseline, tmp)
+        old_tree = None if args.no_baseline else extract(args.baseline, tmp)
         for spec in specs:
             # path by path, this tree then the baseline: a shared machine's load then
             # weighs on both alike
             new, old = {}, None if old_tree is None else {}
             for seed in range(spec["paths"]):
                 one = dict(spec, seeds=[seed])
-                _merge(new, _run(ROOT, one))
+                _merge(new, run_worker(__file__, json.dumps(one), ROOT))
                 if old_tree is not None:
-                    _merge(old, _run(old_tree, one))
+                    _merge(old, run_worker(__file__, json.dumps(one), old_tree))
             _report(spec, new, old)
     print(f"\nbaseline: git revision {args.baseline}" if not args.no_baseline else "")
     print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

@@ -19,17 +19,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pickle
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
+from _revisions import alternated
+
 BASELINE = "7970a67"  # main before this session's seed-search changes
 
 
@@ -113,21 +110,8 @@ def main() -> None:
         queries = Path(tmp) / "queries.pkl"
         with open(queries, "wb") as f:
             pickle.dump(record(library, args.paths), f)
-        tar = subprocess.run(["git", "-C", str(ROOT), "archive", args.baseline, "primlib"],
-                             capture_output=True, check=True).stdout  # fmt: skip
-        base = Path(tmp) / "base"
-        base.mkdir()
-        subprocess.run(["tar", "-x", "-C", str(base)], input=tar, check=True)
         spec = json.dumps({"library": library, "queries": str(queries)})
-        res: dict[str, list] = {"this tree": [], args.baseline: []}
-        trees = {"this tree": ROOT, args.baseline: base}
-        for r in range(args.rounds):
-            for label in list(trees) if r % 2 == 0 else list(trees)[::-1]:
-                env = dict(os.environ, PYTHONPATH=f"{trees[label]}{os.pathsep}{HERE}",
-                           OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")  # fmt: skip
-                out = subprocess.run([sys.executable, __file__, "--worker", spec], env=env,
-                                     capture_output=True, text=True, check=True)  # fmt: skip
-                res[label].append(json.loads(out.stdout.strip().splitlines()[-1]))
+        res = alternated(__file__, spec, args.baseline, args.rounds)
     new, old = res["this tree"], res[args.baseline]
     n = len(new[0]["seeds"])
     print(f"\nseed search alone, {library} library, {n} queries of {args.paths} novel paths "
