@@ -63,3 +63,23 @@ def test_the_pool_is_that_of_every_window_offered_at_once(novel):
     np.testing.assert_array_equal(pool.keys, whole.keys)
     assert pool.items == whole.items
     assert search.stats.scored < 0.2 * scan.stats.scored
+
+
+def test_the_same_query_twice_in_a_row_is_answered_without_a_second_search(novel):
+    # a probe that matches at once, then the segment's choice of its best match, ask for the
+    # same piece: the second answer is the first, with no windows searched again
+    bank, path = novel
+    search = IndexSearch(bank, SearchOptions())
+    first = search.seeds(path, 0.3, 0.5, 0.05)
+    queries, scored = search.stats.queries, search.stats.scored
+    again = search.seeds(path, 0.3, 0.5, 0.05)
+    assert again == first and again is not first
+    assert (search.stats.queries, search.stats.scored) == (queries, scored)
+    # another piece, or the same piece of another path, is searched
+    search.seeds(path, 0.3, 0.45, 0.05)
+    assert search.stats.queries == queries + 1
+    copy = PathPiece(path.points.copy(), path.duration)
+    assert search.seeds(copy, 0.3, 0.45, 0.05) == IndexSearch(bank, SearchOptions()).seeds(
+        copy, 0.3, 0.45, 0.05
+    )
+    assert search.stats.queries == queries + 2

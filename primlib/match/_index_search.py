@@ -183,6 +183,9 @@ class IndexSearch:
     def __post_init__(self) -> None:
         self._grid = GridSearch(self.bank, self.opts, self.stats)
         self._smoothed: list = [None, None, None, None]
+        # the last query asked and its seeds: a segmentation asks for the same piece again
+        # when its probe matched at once and the segment's best match is then chosen
+        self._last: tuple | None = None
 
     def smoothed(self, path: PathPiece, eps: float, wide: bool = False) -> Smoothed:
         """The path as the index sees it (:mod:`._smooth`), kept for the path and eps of
@@ -397,7 +400,20 @@ class IndexSearch:
         which moves each arc sample by at most Δ/2 in space and in ℓ·τ: its window scores
         below √2·Δ/2 plus the copy's own deviation (a few eps at most for a match within
         eps).
+
+        The same query asked twice in a row (the same path object, a, b and eps: a probe
+        that matched at once, then the segment's choice of the best match) is answered
+        from the first answer.
         """
+        last = self._last
+        if last is not None and last[0] is path and last[1:4] == (a, b, eps):
+            return list(last[4])
+        out = self._seeds(path, a, b, eps)
+        self._last = (path, a, b, eps, tuple(out))
+        return out
+
+    def _seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        """:meth:`seeds`, searched."""
         aq = self.arc_query(path, a, b, eps)
         if aq is None:
             # a (nearly) stationary or very short piece: arc length cannot place it
