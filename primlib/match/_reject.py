@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Envelope", "lower_bounds", "rejects"]
+__all__ = ["Envelope", "lower_bounds", "rejects", "row_groups"]
 
 _OVERSHOOT = 0.5  # of the largest sample step (Catmull-Rom: < 0.3)
 
@@ -44,29 +44,41 @@ class Envelope:
     def of(cls, points: np.ndarray, offsets: np.ndarray, max_step: np.ndarray) -> Envelope:
         starts = offsets[:-1]
         counts = np.diff(offsets)
-        d = points.shape[1]
-        # one axis at a time, on contiguous columns: reductions and squares over (N,) runs
-        # (the (N, d) layout's short rows cost ~5x more per element)
-        sq = np.zeros(points.shape[0])
-        sq_xy = None
-        lo, hi = np.empty((len(starts), d)), np.empty((len(starts), d))
-        for a in range(d):
-            col = np.array(points[:, a])  # a copy, contiguous
-            lo[:, a] = np.minimum.reduceat(col, starts)
-            hi[:, a] = np.maximum.reduceat(col, starts)
-            col -= np.repeat(0.5 * (lo[:, a] + hi[:, a]), counts)  # from the box's centre
-            col *= col
-            sq += col
-            if a == 1 and d == 3:
-                sq_xy = sq.copy()
+        k, d = len(starts), points.shape[1]
+        lo, hi = np.empty((k, d)), np.empty((k, d))
+        far2, far2_xy = np.empty(k), np.zeros(k)
+        # whole primitives ~65,536 samples at a time, one axis at a time on contiguous
+        # columns: every pass then reads a column in cache (2.5x less time than whole
+        # columns, whose passes went to memory; the (N, d) layout's short rows cost ~5x
+        # more per element)
+        for g0, g1 in row_groups(offsets):
+            r0, r1 = offsets[g0], offsets[g1]
+            st, cn = starts[g0:g1] - r0, counts[g0:g1]
+            sq = np.zeros(r1 - r0)
+            for a in range(d):
+                col = np.array(points[r0:r1, a])  # a copy, contiguous
+                lo[g0:g1, a] = np.minimum.reduceat(col, st)
+                hi[g0:g1, a] = np.maximum.reduceat(col, st)
+                col -= np.repeat(0.5 * (lo[g0:g1, a] + hi[g0:g1, a]), cn)  # from the centre
+                col *= col
+                sq += col
+                if a == 1 and d == 3:
+                    far2_xy[g0:g1] = np.maximum.reduceat(sq, st)
+            far2[g0:g1] = np.maximum.reduceat(sq, st)
         margin = _OVERSHOOT * max_step
-        far = np.sqrt(np.maximum.reduceat(sq, starts))
-        if sq_xy is not None:
-            far_xy = np.sqrt(np.maximum.reduceat(sq_xy, starts)) + margin
-        else:
-            far_xy = np.zeros(len(starts))
+        far_xy = np.sqrt(far2_xy) + margin if d == 3 else np.zeros(k)
         half = 0.5 * (hi - lo) + margin[:, None]
-        return cls(far + margin, half, far_xy, np.diff(offsets) - 1.0)
+        return cls(np.sqrt(far2) + margin, half, far_xy, np.diff(offsets) - 1.0)
+
+
+def row_groups(offsets: np.ndarray, rows: int = 1 << 16) -> list[tuple[int, int]]:
+    """Consecutive ranges [g0, g1) of whole primitives of about ``rows`` samples each (at
+    least one primitive each), covering all of them: passes over the samples a group at a
+    time keep their temporaries in cache."""
+    k = len(offsets) - 1
+    cuts = np.searchsorted(offsets, np.arange(0, int(offsets[-1]), rows), side="right") - 1
+    cuts = np.unique(np.concatenate([[0], np.minimum(cuts, k), [k]]))
+    return list(zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True))
 
 
 def lower_bounds(env: Envelope, q: np.ndarray, rotation: str) -> np.ndarray:
