@@ -53,20 +53,24 @@ def build_library(k: int, machine: Machine, seed: int = 0, db: Path | None = Non
     return lib
 
 
-def first_call(db: Path, machine: str, path: Trajectory, repeat: int = 3):
+def first_call(db: Path, machine: str, path: Trajectory, repeat: int = 3, cpu: bool = False):
     """Median time of the first ``match`` on a freshly opened library file (DuckDB read,
-    index build, segmentation) and of its bank read alone; the last Match."""
-    times, reads, mt = [], [], None
+    index build, segmentation) and of its bank read alone; the last Match. With ``cpu``,
+    also the median CPU seconds of the first match (all of the process's threads: DuckDB
+    reads with several)."""
+    times, reads, cpus, mt = [], [], [], None
     for _ in range(repeat):
         with Library(db) as lb:
-            t0 = time.perf_counter()
+            c0, t0 = time.process_time(), time.perf_counter()
             mt = lb.match(path, machine=machine, eps=EPS)
             times.append(time.perf_counter() - t0)
+            cpus.append(time.process_time() - c0)
         with Library(db) as lb:
             t0 = time.perf_counter()
             lb.bank(machine)
             reads.append(time.perf_counter() - t0)
-    return statistics.median(times), statistics.median(reads), mt
+    out = (statistics.median(times), statistics.median(reads), mt)
+    return (*out, statistics.median(cpus)) if cpu else out
 
 
 def build_path(lib: Library, machine: Machine, seed: int = 1):
@@ -91,7 +95,8 @@ def build_path(lib: Library, machine: Machine, seed: int = 1):
 
 def worker(spec: dict) -> dict:
     """First calls (fresh opens of a library file written here) and warm calls of the
-    composed path against ``spec["k"]`` primitives: medians, and the segments' keys."""
+    composed path against ``spec["k"]`` primitives: medians (wall and CPU seconds), and
+    the segments' keys."""
     machine = Machine.from_json(Path(spec["root"]) / "data" / "machines" / "xyz.json")
     with tempfile.TemporaryDirectory(prefix="bench_composed_") as folder:
         db = Path(folder) / "lib.duckdb"
@@ -99,16 +104,18 @@ def worker(spec: dict) -> dict:
         with Library(db) as lb:
             path, _ = build_path(lb, machine)
             bank = lb.bank(machine.name)
-        first, _, mt = first_call(db, machine.name, path, spec["first"])
+        first, _, mt, first_cpu = first_call(db, machine.name, path, spec["first"], cpu=True)
     index = BankIndex(bank)
     match_path(index, path, eps=EPS)
-    warm = []
+    warm, warm_cpu = [], []
     for _ in range(spec["warm"]):
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         match_path(index, path, eps=EPS)
         warm.append(time.perf_counter() - t0)
+        warm_cpu.append(time.process_time() - c0)
     keys = [(round(s.end, 9), s.primitive) for s in mt.segments]
-    return {"first": first, "warm": statistics.median(warm), "segments": keys}
+    return {"first": first, "warm": statistics.median(warm), "first_cpu": first_cpu,
+            "warm_cpu": statistics.median(warm_cpu), "segments": keys}  # fmt: skip
 
 
 if __name__ == "__main__" and len(sys.argv) == 3 and sys.argv[1] == "--worker":

@@ -170,7 +170,8 @@ def composed(baseline: str, rounds: int = 2) -> None:
     """``--composed``: the composed path's first call (median of 3 fresh opens) and warm
     call (median of 5) against 1,000 primitives, this tree and revision ``baseline``
     alternated ``rounds`` times, each in its own process (``_composed.py``); the medians
-    over the rounds, the ratio, and whether both cut the same segments (asserted)."""
+    over the rounds (wall and CPU seconds), the ratios, and whether both cut the same
+    segments (asserted)."""
     import json
 
     spec = json.dumps({"k": 1000, "first": 3, "warm": 5, "root": str(ROOT)})
@@ -179,13 +180,16 @@ def composed(baseline: str, rounds: int = 2) -> None:
     assert all(r["segments"] == new[0]["segments"] for r in new + old), "segments differ"
     print(f"\ncomposed path, 1,000 primitives ({rounds} rounds alternated; baseline git "
           f"revision {baseline})")  # fmt: skip
-    print("| call | this tree | baseline | ratio | goal |")
-    print("|---|---|---|---|---|")
+    print("| call | this tree | baseline | ratio | goal | CPU: this tree | baseline | ratio |")
+    print("|---|---|---|---|---|---|---|---|")
     for name, goal in (("first", 1.0), ("warm", 0.5)):
         a = statistics.median(r[name] for r in new)
         b = statistics.median(r[name] for r in old)
+        ca = statistics.median(r[f"{name}_cpu"] for r in new)
+        cb = statistics.median(r[f"{name}_cpu"] for r in old)
         print(f"| {name} | {a:.3f} s | {b:.3f} s | {b / a:.2f}x | <= {goal} s: "
-              f"{'met' if a <= goal else 'NOT met'} |")  # fmt: skip
+              f"{'met' if a <= goal else 'NOT met'} | {ca:.3f} s | {cb:.3f} s | "
+              f"{cb / ca:.2f}x |")  # fmt: skip
     print(f"same segments: {len(new[0]['segments'])}, equal in every run")
 
 

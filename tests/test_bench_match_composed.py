@@ -23,3 +23,5 @@ def test_worker_times_the_composed_path_and_recovers_its_pieces(composed):
     # 5 pieces of the first 5 primitives (ids 1-5 in a fresh library file)
     assert [p for _, p in out["segments"]] == [1, 2, 3, 4, 5]
     assert out["segments"][-1][0] == 1.0
+    # CPU seconds beside the wall times (the first call's include DuckDB's reader threads)
+    assert out["first_cpu"] > 0 and out["warm_cpu"] > 0
