@@ -16,14 +16,19 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from primlib.match._bounds import strided_cumsum, strided_prefix_sums
+from primlib.match._bounds import (
+    QueryMoments,
+    speed_groups,
+    strided_cumsum,
+    strided_prefix_sums,
+)
 from primlib.match._reject import row_groups
 from primlib.match._smooth import smooth_bank
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
 
-__all__ = ["ArcIndex", "Level", "ArcSamples"]
+__all__ = ["ArcIndex", "Level", "ArcSamples", "ArcQuery"]
 
 
 @dataclass(frozen=True)
@@ -300,3 +305,56 @@ class ArcSamples:
             i -= np.repeat(offsets[g0:g1].astype(float), counts[g0:g1])
             x[r0:r1] = i
         return cls(pts, dev, starts, length, garc, x, gap, big)
+
+
+@dataclass(frozen=True)
+class ArcQuery:
+    """One query resampled at uniform arc length, and the index level it is searched on.
+
+    ``k`` arc samples at spacing ``step`` (= ``level.step · dil``); windows start at every
+    point of ``level`` and take every ``dil``-th point (``span`` points in all).
+    """
+
+    index: ArcIndex
+    jb: int
+    level: Level
+    dil: int
+    step: float
+    ell: float
+    u: np.ndarray  # (k,) normalised time of the arc samples within [0, 1]
+    qc: np.ndarray  # (k, d) centred arc samples
+    sq: np.ndarray | float  # Σ|q̃|², per axis for rotation "z"
+    moments: QueryMoments
+    duration: float  # query duration in stored samples
+    per_axis: bool
+    smoothing: float = 0.0  # RMS deviation of the smoothed piece from the path samples
+    memo: dict = field(default_factory=dict, compare=False, repr=False)  # per-query constants
+
+    @property
+    def k(self) -> int:
+        return self.qc.shape[0]
+
+    @property
+    def span(self) -> int:
+        return (self.k - 1) * self.dil + 1
+
+    @property
+    def n_windows(self) -> int:
+        return self.level.pts.shape[0] - self.span + 1
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Normalised time within the piece at each arc sample (the speed profile)."""
+        hit = self.memo.get("tau")
+        if hit is None:
+            hit = self.memo["tau"] = (self.u - self.u[0]) / max(self.u[-1] - self.u[0], 1e-300)
+        return hit
+
+    def groups(self, parts: int) -> tuple[tuple[int, int, float], ...]:
+        """:func:`~._bounds.speed_groups` of :attr:`tau` (once per query: a screen asks for
+        them for every block of windows)."""
+        key = ("groups", parts)
+        hit = self.memo.get(key)
+        if hit is None:
+            hit = self.memo[key] = speed_groups(self.tau, parts)
+        return hit

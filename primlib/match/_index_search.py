@@ -50,7 +50,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from primlib.match._arc_index import ArcIndex, Level
+from primlib.match._arc_index import ArcIndex, ArcQuery
 from primlib.match._bank import BankIndex
 from primlib.match._bounds import (
     QueryMoments,
@@ -60,7 +60,6 @@ from primlib.match._bounds import (
     principal_bound,
     principal_bound_points,
     speed_bound,
-    speed_groups,
     speed_screen,
 )
 from primlib.match._grid import GridSearch
@@ -72,59 +71,6 @@ from primlib.match._smooth import Smoothed, smooth_path, smooth_to, wiggly
 __all__ = ["IndexSearch", "ArcQuery"]
 
 _SHIFTS = np.linspace(-0.5, 0.5, 5)  # sub-step re-scoring of the pool, in base steps
-
-
-@dataclass(frozen=True)
-class ArcQuery:
-    """One query resampled at uniform arc length, and the index level it is searched on.
-
-    ``k`` arc samples at spacing ``step`` (= ``level.step · dil``); windows start at every
-    point of ``level`` and take every ``dil``-th point (``span`` points in all).
-    """
-
-    index: ArcIndex
-    jb: int
-    level: Level
-    dil: int
-    step: float
-    ell: float
-    u: np.ndarray  # (k,) normalised time of the arc samples within [0, 1]
-    qc: np.ndarray  # (k, d) centred arc samples
-    sq: np.ndarray | float  # Σ|q̃|², per axis for rotation "z"
-    moments: QueryMoments
-    duration: float  # query duration in stored samples
-    per_axis: bool
-    smoothing: float = 0.0  # RMS deviation of the smoothed piece from the path samples
-    memo: dict = field(default_factory=dict, compare=False, repr=False)  # per-query constants
-
-    @property
-    def k(self) -> int:
-        return self.qc.shape[0]
-
-    @property
-    def span(self) -> int:
-        return (self.k - 1) * self.dil + 1
-
-    @property
-    def n_windows(self) -> int:
-        return self.level.pts.shape[0] - self.span + 1
-
-    @property
-    def tau(self) -> np.ndarray:
-        """Normalised time within the piece at each arc sample (the speed profile)."""
-        hit = self.memo.get("tau")
-        if hit is None:
-            hit = self.memo["tau"] = (self.u - self.u[0]) / max(self.u[-1] - self.u[0], 1e-300)
-        return hit
-
-    def groups(self, parts: int) -> tuple[tuple[int, int, float], ...]:
-        """:func:`~._bounds.speed_groups` of :attr:`tau` (once per query: a screen asks for
-        them for every block of windows)."""
-        key = ("groups", parts)
-        hit = self.memo.get(key)
-        if hit is None:
-            hit = self.memo[key] = speed_groups(self.tau, parts)
-        return hit
 
 
 @dataclass(frozen=True)
