@@ -412,18 +412,23 @@ class IndexSearch:
             lbs = self.speed_bound(aq, rest)
             keep = lbs < pool.combined
             rest, lbs = rest[keep], lbs[keep]
-        else:
-            # fewer than the pool's best few below the gate yet: the speed bound prunes
-            # nothing (a window below the gate enters whatever its speed profile); the
-            # drain bounds the rest once the pool has a threshold
-            lbs = np.full(rest.size, -1.0)
         if rest.size > self.gather_fraction * aq.n_windows:
             lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
         else:
             lb1 = self.first_bound(aq, rest)
-        lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
-        keep = (lb1 < gates.at(rest)) & (lbc < pool.combined)
-        rest, lbs, lbc = rest[keep], lbs[keep], lbc[keep]
+        if known:
+            lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
+            keep = (lb1 < gates.at(rest)) & (lbc < pool.combined)
+            rest, lbs, lbc = rest[keep], lbs[keep], lbc[keep]
+        else:
+            # fewer than the pool's best few below the gate yet: the speed bound prunes
+            # nothing (a window below the gate enters whatever its speed profile); the
+            # drain bounds the rest once the pool has a threshold. The combined bound is
+            # the shape bound alone (hypot(x, 0) = x), and every one is below the
+            # threshold (inf): no hypot and no test over every window
+            keep = lb1 < gates.at(rest)
+            rest, lbc = rest[keep], np.maximum(lb1[keep], 0.0)
+            lbs = np.full(rest.size, -1.0)
         self.stats.bounded += head.size + rest.size
         self._drain(aq, gates, pool, rest, lbs, lbc, known)
         return pool
