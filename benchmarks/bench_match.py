@@ -17,11 +17,12 @@ Reports, each beside its baseline measured in the same run:
 * first-call and warm match time against library size 10 / 100 / 1,000.
 
 * the persisted index: reading the 1,000 primitives' index and envelopes back from a
-  DuckDB file against building them (``_index_persist.py``, interleaved, medians of 5);
+  DuckDB file against building them (``_index_persist.py``, interleaved, medians of 5;
+  the read in three layouts: DOUBLE[] lists, one BLOB per array, plain DOUBLE columns);
   rebuilding is cheaper (build 0.34 s against a 0.46 s read, 0.42 s against 0.52 s, 0.63 s
-  against 0.73 s, in three runs at load 5-6; and before a stored index could be used it
-  would also have to be checked against the stored primitives), so the index is not kept
-  in the library file.
+  against 0.73 s, in three runs at load 5-6, lists only; and before a stored index could
+  be used it would also have to be checked against the stored primitives), so the index
+  is not kept in the library file.
 
 Run: ``python benchmarks/bench_match.py`` (single-threaded BLAS; ``--full-grid`` also runs
 the time grid on 1,000 primitives, about ten minutes; ``--restricted`` instead times the
@@ -206,11 +207,14 @@ def index_build_baseline(baseline: str, rounds: int = 3) -> None:
 
 
 def index_persistence(bank, folder: Path, repeat: int = 5) -> tuple[float, float, float]:
-    """Median seconds to build the 1,000 primitives' index and to read it from DuckDB."""
+    """Median seconds to build the 1,000 primitives' index and to read it from DuckDB (the
+    fastest of the layouts of ``_index_persist.py``: DOUBLE[] lists, BLOBs, plain DOUBLE
+    columns, each printed)."""
     r = index_read_vs_build(bank, folder / "index.duckdb", repeat)
+    layouts = ", ".join(f"{lay} {r[f'read_{lay}']:.3f} s" for lay in ("list", "blob", "column"))
     print(f"\nthe index of {len(bank.ids):,} primitives ({r['mb']:.0f} MB of arrays): build "
-          f"{r['build']:.3f} s, read back from a DuckDB file {r['read']:.3f} s "
-          f"(medians of {repeat}, interleaved)")  # fmt: skip
+          f"{r['build']:.3f} s, read back from a DuckDB file {r['read']:.3f} s at best "
+          f"({layouts}; medians of {repeat}, interleaved)")  # fmt: skip
     return r["build"], r["read"], r["mb"]
 
 

@@ -49,6 +49,9 @@ def test_index_read_back_from_duckdb_equals_the_built_one(modules, tmp_path):
     # compare() asserts every array read back equals the built one
     r = persist.compare(bank, tmp_path / "index.duckdb", repeat=1)
     assert r["build"] > 0 and r["read"] > 0 and r["mb"] > 0
+    # each layout read back and timed (lists, BLOBs, plain columns); "read" the fastest
+    reads = [r[f"read_{layout}"] for layout in persist.LAYOUTS]
+    assert all(t > 0 for t in reads) and r["read"] == min(reads)
 
 
 def test_index_build_is_timed_with_the_primlib_on_the_path(modules):
