@@ -154,9 +154,9 @@ def compare(bank, db: Path, repeat: int = 5) -> dict[str, float]:
     return out
 
 
-def build_seconds(repeat: int = 5, kind: str = "random-1000") -> float:
-    """Median seconds to build the 1,000 random primitives' (``kind``: or the bundled
-    library's) index and envelopes (a fresh
+def build_seconds(repeat: int = 5, kind: str = "random-1000") -> dict[str, float]:
+    """Median wall and CPU seconds (keys ``wall``, ``cpu``) to build the 1,000 random
+    primitives' (``kind``: or the bundled library's) index and envelopes (a fresh
     ``BankIndex``, ``arc_index()``, ``envelope()``) with the primlib on ``sys.path``: run as
     ``python _index_persist.py --worker N`` under another revision's ``PYTHONPATH``, the
     same build there (``bench_match.py --index --baseline REV``)."""
@@ -166,14 +166,15 @@ def build_seconds(repeat: int = 5, kind: str = "random-1000") -> float:
     from bench_match_novel import _library
 
     bank, _ = _library(kind)
-    times = []
+    walls, cpus = [], []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         index = BankIndex(bank)
         index.arc_index()
         index.envelope()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return {"wall": statistics.median(walls), "cpu": statistics.median(cpus)}
 
 
 if __name__ == "__main__":

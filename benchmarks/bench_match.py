@@ -200,10 +200,13 @@ def index_build_baseline(baseline: str, rounds: int = 3) -> None:
     own process."""
 
     res = alternated(ROOT / "benchmarks" / "_index_persist.py", "5", baseline, rounds)
-    a, b = statistics.median(res["this tree"]), statistics.median(res[baseline])
+    med = {k: {u: statistics.median(r[u] for r in v) for u in ("wall", "cpu")}
+           for k, v in res.items()}  # fmt: skip
+    a, b = med["this tree"], med[baseline]
     print(f"index build alone (arc-length index + envelopes, 1,000 primitives; {rounds} rounds "
-          f"alternated): this tree {a:.3f} s, git revision {baseline} {b:.3f} s, "
-          f"{b / a:.2f}x")  # fmt: skip
+          f"alternated): this tree {a['wall']:.3f} s ({a['cpu']:.3f} s CPU), git revision "
+          f"{baseline} {b['wall']:.3f} s ({b['cpu']:.3f} s CPU), {b['wall'] / a['wall']:.2f}x "
+          f"({b['cpu'] / a['cpu']:.2f}x CPU)")  # fmt: skip
 
 
 def index_persistence(bank, folder: Path, repeat: int = 5) -> tuple[float, float, float]:
