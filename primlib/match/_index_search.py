@@ -197,14 +197,19 @@ class IndexSearch:
             idx, jb, lv, dil, step, ell, u, qc, sq, QueryMoments.of(qc), dq, per_axis, smoothing
         )
 
-    def first_bound(self, aq: ArcQuery, ws: np.ndarray | None = None) -> np.ndarray:
+    def first_bound(self, aq: ArcQuery,
+                    ws: np.ndarray | tuple[int, int] | None = None) -> np.ndarray:  # fmt: skip
         """Half-window lower bound of the shape RMSD of every window, or of windows ``ws``
-        (:mod:`._bounds`), the per-axis form when the rotation family is restricted."""
+        (an index array, or a range (c0, c1): sliced, not gathered) (:mod:`._bounds`), the
+        per-axis form when the rotation family is restricted."""
         rotation = self.opts.rotation
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil, products=rotation != "full")
         d = aq.qc.shape[1]
         margin = half_bound_margin(aq.k, d, pmax, radius)
-        n = aq.n_windows if ws is None else ws.size
+        if isinstance(ws, tuple):  # window m of the range reads the columns from c0 on
+            psum, ws, n = psum[:, ws[0] :], None, ws[1] - ws[0]
+        else:
+            n = aq.n_windows if ws is None else ws.size
         if rotation == "full":
             return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws)
         # per-axis energies: each carries up to the total's error bound
@@ -401,22 +406,18 @@ class IndexSearch:
             lbs = self.speed_bound(aq, head)
             head = np.sort(head[np.argpartition(lbs, self.first_batch - 1)[: self.first_batch]])
         self._batch(aq, pool, head, self.speed_bound(aq, head), None, gates.at(head))
-        rest = self._screen(aq, gates, pool.combined)
-        seen = np.zeros(aq.n_windows, dtype=bool)
-        seen[head] = True
-        rest = rest[~seen[rest]]
-        if rest.size == 0:
-            return pool
         known = math.isfinite(pool.combined)
         if known:
+            rest = self._exclude(self._screen(aq, gates, pool.combined), head, aq.n_windows)
+            if rest.size == 0:
+                return pool
             lbs = self.speed_bound(aq, rest)
             keep = lbs < pool.combined
             rest, lbs = rest[keep], lbs[keep]
-        if rest.size > self.gather_fraction * aq.n_windows:
-            lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
-        else:
-            lb1 = self.first_bound(aq, rest)
-        if known:
+            if rest.size > self.gather_fraction * aq.n_windows:
+                lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
+            else:
+                lb1 = self.first_bound(aq, rest)
             lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
             keep = (lb1 < gates.at(rest)) & (lbc < pool.combined)
             rest, lbs, lbc = rest[keep], lbs[keep], lbc[keep]
@@ -424,9 +425,9 @@ class IndexSearch:
             # fewer than the pool's best few below the gate yet: the speed bound prunes
             # nothing (a window below the gate enters whatever its speed profile); the
             # drain bounds the rest once the pool has a threshold. The combined bound is
-            # the shape bound alone (hypot(x, 0) = x), and every one is below the
-            # threshold (inf): no hypot and no test over every window
-            keep = lb1 < gates.at(rest)
+            # the shape bound alone (hypot(x, 0) = x)
+            rest, lb1 = self._screen_shape(aq, gates)
+            keep = ~np.isin(rest, head, assume_unique=True)
             rest, lbc = rest[keep], np.maximum(lb1[keep], 0.0)
             lbs = np.full(rest.size, -1.0)
         self.stats.bounded += head.size + rest.size
@@ -508,6 +509,36 @@ class IndexSearch:
                 ok &= self.speed_screen(aq, (c0, c1), tau)
                 out.append(c0 + np.flatnonzero(ok))
         return np.concatenate(out)
+
+    def _screen_shape(self, aq: ArcQuery, gates: _Gates) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_screen` with no threshold yet, the shape bound against the gate taken
+        first: every valid window whose half-window bound is below its gate and whose time
+        scale is in range, and those bounds, by blocks of windows. The same windows as
+        :meth:`_screen` followed by the bound; the time-scale test then reads the few below
+        the gate (a few in a hundred), not every window, and no index array of every
+        window is formed."""
+        out, bounds = [], []
+        n = aq.n_windows
+        for c0 in range(0, n, 1 << 16):
+            c1 = min(c0 + (1 << 16), n)
+            ok = gates.valid((c0, c1))
+            self.stats.windows += int(np.count_nonzero(ok))
+            lb1 = self.first_bound(aq, (c0, c1))
+            gate = gates.gate if gates.stored is None else gates.at(np.arange(c0, c1))
+            ok &= lb1 < gate
+            at = np.flatnonzero(ok)
+            ws = c0 + at
+            inside = self.in_range(aq, ws, screen=True)[0]
+            out.append(ws[inside])
+            bounds.append(lb1[at[inside]])
+        return np.concatenate(out), np.concatenate(bounds)
+
+    @staticmethod
+    def _exclude(rest: np.ndarray, head: np.ndarray, n: int) -> np.ndarray:
+        """``rest`` without the windows of ``head`` (both of windows < n), in order."""
+        seen = np.zeros(n, dtype=bool)
+        seen[head] = True
+        return rest[~seen[rest]]
 
     def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
                lbc: np.ndarray | None, gates: np.ndarray) -> None:  # fmt: skip
