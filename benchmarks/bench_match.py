@@ -33,9 +33,10 @@ composed and novel paths of those lengths against the bundled library, each in i
 process with its peak memory, the ratios to the first length beside the goals, and with
 ``--baseline`` the same paths matched by revision REV's primlib — ``_length_scaling.py``;
 ``--index [--baseline REV]`` only the index row, on 1,000 random primitives (with the
-build also timed with revision REV); ``--composed [--baseline REV]``
+build also timed with revision REV); ``--composed [--baseline REV] [--rounds N]``
 only the composed path's first and warm calls at 1,000 primitives, this tree and revision
-REV (default main) alternated, each in its own process — ``_composed.py``).
+REV (default main) alternated N times (default 2), each in its own process —
+``_composed.py``).
 """
 
 from __future__ import annotations
@@ -254,6 +255,12 @@ def main() -> None:
         "and --baseline alternated",
     )
     ap.add_argument(
+        "--rounds",
+        type=int,
+        default=2,
+        help="with --composed: rounds of this tree and the baseline alternated (default 2)",
+    )
+    ap.add_argument(
         "--index",
         action="store_true",
         help="only the index row: read back from DuckDB against rebuilt, 1,000 primitives",
@@ -272,7 +279,7 @@ def main() -> None:
         return
     if args.composed:
         print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-        composed(args.baseline or "main")
+        composed(args.baseline or "main", args.rounds)
         print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         return
     if args.length:
