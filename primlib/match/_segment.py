@@ -71,6 +71,7 @@ from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchSt
 from primlib.match._refine import piece_rmsd, prim_at
 from primlib.match._refine_many import refine_many
 from primlib.match._reject import rejects
+from primlib.match._screen import SlopeRanges, prefixes_fail
 from primlib.match._types import Segment
 
 if TYPE_CHECKING:
@@ -86,6 +87,7 @@ __all__ = [
 ]
 
 _MIN_SAMPLES = 8  # shortest piece probed, in path samples
+_SCREEN_MAX, _SCREEN_BANK = 32, 1 << 18  # screened: first guesses, banks up to (samples)
 
 
 class Seeder(Protocol):
@@ -152,6 +154,7 @@ class _Segmenter:
         self.sig = 1  # the minimum step σ in samples (set by run)
         # the last failing whole search: (a, b, its seeds, them refined, best first)
         self.failed: tuple[float, float, list[Candidate], list[Candidate]] | None = None
+        self.slopes: SlopeRanges | None = None  # built by the first _screened that runs
 
     def _try(self, a: float, b: float, seeds: list[Candidate], kc: int):
         """A seed within eps of [a, b] as it comes or once refined (or None), and every
@@ -248,6 +251,19 @@ class _Segmenter:
         near, _, _ = self._try(a, b, [short], self.path.confirm_points(a, b))
         return None if near is None else (at, near)
 
+    def _screened(self, ia: int, length: int) -> bool:
+        """True when every prefix from ia of ``_MIN_SAMPLES`` to length + 1 samples provably
+        fails (:func:`._screen.prefixes_fail`): :meth:`_first_match` would return None."""
+        rot, bank = self.opts.rotation, self.bank
+        if rot == "full" or length > _SCREEN_MAX or bank.points.shape[0] > _SCREEN_BANK:
+            return False
+        self.slopes = self.slopes or SlopeRanges(bank.points, bank.offsets)
+        ells = range(length, _MIN_SAMPLES - 2, -1)  # the longest first: it fails most
+        if not prefixes_fail(self.slopes, self.path, ia, ells, bank.dt, self.opts, self.eps):
+            return False
+        self.rejected += 1
+        return True
+
     def _first_match(self, ia: int, sig: int, guess: int):
         """Step back from a prefix as long as ``guess`` until one matches: after a whole
         search fails at L, its refined seeds are tried shrunk (at their time scales) to
@@ -259,6 +275,8 @@ class _Segmenter:
         last = self.path.n - 1
         v = 1.0 / last
         length = min(max(guess, sig), last - ia)
+        if self._screened(ia, length):
+            return None
         hi, r_hi = None, np.inf
         found, r = self.probe(ia * v, (ia + length) * v)
         while found is None:
