@@ -46,6 +46,7 @@ __all__ = ["SlopeRanges", "min_bound", "screens", "prefixes_fail"]
 _SAFE = 1e-6  # relative slack against round-off, on both sides of the comparison
 PAD = 256  # empty intervals after each primitive: the longest run (intervals) screened
 _BLOCK = 64  # runs per block of the coarse first pass
+_RATIO = 2.0**0.5  # of the duration sub-ranges (shorter runs: tighter ranges of p', p'')
 
 
 class SlopeRanges:
@@ -209,12 +210,13 @@ def _moments(q: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, float]:
 
 
 def _sub_ranges(d_lo: float, d_hi: float):
-    """[d_lo, d_hi] cut at the powers of two, each piece with the run width (intervals)
-    that holds a piece of its longest duration 2^(m+1): a few widths, kept."""
-    m = math.floor(math.log2(max(d_lo, 1e-300)))
+    """[d_lo, d_hi] cut at the powers of ``_RATIO``, each piece with the run width
+    (intervals) that holds a piece of its longest duration ``_RATIO``^(m+1): a few
+    widths, kept."""
+    m = math.floor(math.log(max(d_lo, 1e-300), _RATIO))
     while True:
-        top = 2.0 ** (m + 1)
-        yield max(d_lo, 2.0**m), min(d_hi, top), math.ceil(top) + 1
+        top = _RATIO ** (m + 1)
+        yield max(d_lo, _RATIO**m), min(d_hi, top), math.ceil(top) + 1
         if top >= d_hi:
             return
         m += 1
@@ -242,7 +244,7 @@ def _bound(q1, q2, c1, c2, box, bottom: float, top: float, exact: bool) -> np.nd
 def _too_long(d_hi: float) -> bool:
     """Whether the longest run of :func:`_sub_ranges` is longer than the padding covers
     (such durations are not screened)."""
-    return 2.0 ** math.ceil(math.log2(max(d_hi, 1.0))) + 1 > PAD
+    return math.ceil(_RATIO ** math.ceil(math.log(max(d_hi, 1.0), _RATIO))) + 1 > PAD
 
 
 def min_bound(slopes: SlopeRanges, q: np.ndarray, d_lo: float, d_hi: float,
@@ -255,6 +257,8 @@ def min_bound(slopes: SlopeRanges, q: np.ndarray, d_lo: float, d_hi: float,
     q1, q2 = _q_axes(q1, rotation), _q_axes(q2, rotation)
     best = np.inf
     for bottom, top, width in _sub_ranges(d_lo, d_hi):
+        if width > PAD:
+            return 0.0
         fine, _ = slopes.runs(width, rotation)
         if fine[0].shape[0]:
             g = _bound(q1[None], q2[None], c1, c2, fine, bottom, top, True)
@@ -279,6 +283,8 @@ def screens(slopes: SlopeRanges, q: np.ndarray, d_lo: float, d_hi: float, rotati
     q1, c1, q2, c2 = _moments(q)
     q1, q2 = _q_axes(q1, rotation)[None], _q_axes(q2, rotation)[None]
     for bottom, top, width in _sub_ranges(d_lo, d_hi):
+        if width > PAD:
+            return False
         fine, coarse = slopes.runs(width, rotation)
         blocks = np.flatnonzero(_bound(q1, q2, c1, c2, coarse, bottom, top, False) < need)
         if blocks.size == 0:
