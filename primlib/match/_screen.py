@@ -95,6 +95,13 @@ class SlopeRanges:
         self._d = points.shape[1]
         self._runs: dict = {}
 
+    @staticmethod
+    def rows(bank) -> int:
+        """Rows of the tables for ``bank`` (a :class:`~._bank.BankIndex`): its samples and
+        the padding after each primitive (each of the up to 8 levels and each run width
+        kept holds this many rows of 4d numbers)."""
+        return int(bank.points.shape[0]) + PAD * int(bank.k)
+
     def over(self, width: int) -> tuple[np.ndarray, ...]:
         """Ranges of p' (lo, hi) and of p'' (lo2, hi2) over every run of ``width``
         consecutive intervals inside one primitive, indexed by the first, shape (M, d)

@@ -87,7 +87,7 @@ __all__ = [
 ]
 
 _MIN_SAMPLES = 8  # shortest piece probed, in path samples
-_SCREEN_MAX, _SCREEN_BANK = 32, 1 << 18  # screened: first guesses, banks up to (samples)
+_SCREEN_MAX, _SCREEN_BANK = 32, 1 << 16  # screened: first guesses, banks up to (table rows)
 
 
 class Seeder(Protocol):
@@ -255,7 +255,7 @@ class _Segmenter:
         """True when every prefix from ia of ``_MIN_SAMPLES`` to length + 1 samples provably
         fails (:func:`._screen.prefixes_fail`): :meth:`_first_match` would return None."""
         rot, bank = self.opts.rotation, self.bank
-        if rot == "full" or length > _SCREEN_MAX or bank.points.shape[0] > _SCREEN_BANK:
+        if rot == "full" or length > _SCREEN_MAX or SlopeRanges.rows(bank) > _SCREEN_BANK:
             return False
         self.slopes = self.slopes or SlopeRanges(bank.points, bank.offsets)
         ells = range(length, _MIN_SAMPLES - 2, -1)  # the longest first: it fails most
