@@ -154,7 +154,8 @@ class _Segmenter:
         self.sig = 1  # the minimum step σ in samples (set by run)
         # the last failing whole search: (a, b, its seeds, them refined, best first)
         self.failed: tuple[float, float, list[Candidate], list[Candidate]] | None = None
-        self.slopes: SlopeRanges | None = None  # built by the first _screened that runs
+        self.slopes, self.missed = None, False  # _screened's tables; the last start failed
+        self.screen = opts.rotation != "full" and SlopeRanges.rows(bank) <= _SCREEN_BANK
 
     def _try(self, a: float, b: float, seeds: list[Candidate], kc: int):
         """A seed within eps of [a, b] as it comes or once refined (or None), and every
@@ -253,9 +254,9 @@ class _Segmenter:
 
     def _screened(self, ia: int, length: int) -> bool:
         """True when every prefix from ia of ``_MIN_SAMPLES`` to length + 1 samples provably
-        fails (:func:`._screen.prefixes_fail`): :meth:`_first_match` would return None."""
-        rot, bank = self.opts.rotation, self.bank
-        if rot == "full" or length > _SCREEN_MAX or SlopeRanges.rows(bank) > _SCREEN_BANK:
+        fails (:func:`._screen.prefixes_fail`; tried in unmatched stretches, where it holds)."""
+        bank = self.bank
+        if not (self.screen and self.missed) or length > _SCREEN_MAX:
             return False
         self.slopes = self.slopes or SlopeRanges(bank.points, bank.offsets)
         ells = range(length, _MIN_SAMPLES - 2, -1)  # the longest first: it fails most
@@ -408,6 +409,7 @@ class _Segmenter:
         guess = last
         while ia < last:
             best = self.longest_prefix(ia, sig, guess)
+            self.missed = best is None
             if best is not None:
                 segments.append(self.segment(ia / last, best[0] / last, best[1]))
                 guess = best[0] - ia
@@ -426,10 +428,8 @@ class _Segmenter:
             ia = ib
             advance *= 2
             if guess == last:
-                # nothing matched yet, not even the shortest piece: the whole remainder (and
-                # its halves) will fail from the next start too; its first probe is the
-                # shortest piece (one whole search; a match there gallops up through
-                # extensions)
+                # nothing matched yet, not even the shortest piece: the next start's first
+                # probe is the shortest piece (a match there gallops up through extensions)
                 guess = _MIN_SAMPLES - 1
             if progress is not None:
                 progress(ia, last, len(segments))
