@@ -62,6 +62,7 @@ from primlib.match._bounds import (
     speed_bound,
     speed_screen,
 )
+from primlib.match._gates import Gates as _Gates
 from primlib.match._grid import GridSearch
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
@@ -71,42 +72,6 @@ from primlib.match._smooth import Smoothed, smooth_path, smooth_to, wiggly
 __all__ = ["IndexSearch", "ArcQuery"]
 
 _SHIFTS = np.linspace(-0.5, 0.5, 5)  # sub-step re-scoring of the pool, in base steps
-
-
-@dataclass(frozen=True)
-class _Gates:
-    """Which windows of a query can hold a stored copy (``valid``: enough arc left in the
-    primitive) and each one's gate on the shape RMSD (:meth:`IndexSearch.seeds`)."""
-
-    gate: float
-    stored: np.ndarray | None  # RMS deviation of each window's smoothed samples, or None
-    left: np.ndarray  # level.left
-    need: float  # arc a window must have left
-
-    @classmethod
-    def of(cls, aq: ArcQuery, eps: float) -> _Gates:
-        # a stored copy starts within half a base step of some window start, which moves
-        # every arc sample by at most that: its window's shape RMSD is below the gate; the
-        # copy is within eps + smoothing (+ the stored window's own) of what the index holds
-        gate = 3.0 * (eps + aq.smoothing) + 0.5 * aq.level.step * (1.0 + 1e-6)
-        stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
-        # chord lengths under-estimate arc length a little (more for the stored samples than
-        # for the densely sampled query): let a piece reach a primitive's very end
-        need = aq.ell - max(aq.step, 0.02 * aq.ell)
-        return cls(gate, stored, aq.level.left, need)
-
-    @property
-    def top(self) -> float:
-        return self.gate if self.stored is None else self.gate + 3.0 * float(self.stored.max())
-
-    def at(self, ws: np.ndarray) -> np.ndarray:
-        if self.stored is None:
-            return np.full(ws.size, self.gate)
-        return self.gate + 3.0 * self.stored[ws]
-
-    def valid(self, ws: np.ndarray | tuple[int, int]) -> np.ndarray:
-        left = self.left[ws[0] : ws[1]] if isinstance(ws, tuple) else self.left[ws]
-        return left >= self.need
 
 
 @dataclass
@@ -352,9 +317,7 @@ class IndexSearch:
         below √2·Δ/2 plus the copy's own deviation (a few eps at most for a match within
         eps).
 
-        The same query asked twice in a row (the same path object, a, b and eps: a probe
-        that matched at once, then the segment's choice of the best match) is answered
-        from the first answer.
+        The same query twice in a row (path object, a, b, eps) is answered from the first.
         """
         last = self._last
         if last is not None and last[0] is path and last[1:4] == (a, b, eps):
@@ -401,14 +364,17 @@ class IndexSearch:
             return pool
         head = np.arange(0, aq.n_windows, self.sample)
         head = head[gates.valid(head)]
+        sampled = max(head.size, 1)
         head = head[self.in_range(aq, head)[0]]
+        share = head.size / sampled  # of the valid windows, those in time-scale range
         if head.size > self.first_batch:
             lbs = self.speed_bound(aq, head)
             head = np.sort(head[np.argpartition(lbs, self.first_batch - 1)[: self.first_batch]])
         self._batch(aq, pool, head, self.speed_bound(aq, head), None, gates.at(head))
         known = math.isfinite(pool.combined)
         if known:
-            rest = self._exclude(self._screen(aq, gates, pool.combined), head, aq.n_windows)
+            rest = self._screen(aq, gates, pool.combined)
+            rest = rest[~np.isin(rest, head, assume_unique=True)]
             if rest.size == 0:
                 return pool
             lbs = self.speed_bound(aq, rest)
@@ -426,10 +392,8 @@ class IndexSearch:
             # nothing (a window below the gate enters whatever its speed profile); the
             # drain bounds the rest once the pool has a threshold. The combined bound is
             # the shape bound alone (hypot(x, 0) = x)
-            rest, lb1 = self._screen_shape(aq, gates)
-            keep = ~np.isin(rest, head, assume_unique=True)
-            rest, lbc = rest[keep], np.maximum(lb1[keep], 0.0)
-            lbs = np.full(rest.size, -1.0)
+            rest, lb1 = self._below_gate(aq, gates, head, share)
+            lbc, lbs = np.maximum(lb1, 0.0), np.full(rest.size, -1.0)
         self.stats.bounded += head.size + rest.size
         self._drain(aq, gates, pool, rest, lbs, lbc, known)
         return pool
@@ -510,13 +474,27 @@ class IndexSearch:
                 out.append(c0 + np.flatnonzero(ok))
         return np.concatenate(out)
 
+    def _below_gate(self, aq: ArcQuery, gates: _Gates, head: np.ndarray,
+                    share: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Every valid window not in ``head`` whose time scale is in range and whose shape
+        bound is below its gate, and those bounds. Most windows in time-scale range (a
+        ``share`` of the sample, :meth:`_best_first`): the bound on every window first
+        (:meth:`_screen_shape`); few (a short, nearly straight piece): the time-scale test
+        first (:meth:`_screen`), the bound on those alone. The same windows either way."""
+        if share > self.gather_fraction:
+            rest, lb1 = self._screen_shape(aq, gates)
+            keep = ~np.isin(rest, head, assume_unique=True)
+        else:
+            rest = self._screen(aq, gates, math.inf)
+            rest = rest[~np.isin(rest, head, assume_unique=True)]
+            lb1 = self.first_bound(aq, rest)
+            keep = lb1 < gates.at(rest)
+        return rest[keep], lb1[keep]
+
     def _screen_shape(self, aq: ArcQuery, gates: _Gates) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`_screen` with no threshold yet, the shape bound against the gate taken
-        first: every valid window whose half-window bound is below its gate and whose time
-        scale is in range, and those bounds, by blocks of windows. The same windows as
-        :meth:`_screen` followed by the bound; the time-scale test then reads the few below
-        the gate (a few in a hundred), not every window, and no index array of every
-        window is formed."""
+        """:meth:`_screen` with no threshold, the shape bound against the gate first, by
+        blocks of windows: the time-scale test then reads the few below the gate, and no
+        index array of every window is formed."""
         out, bounds = [], []
         n = aq.n_windows
         for c0 in range(0, n, 1 << 16):
@@ -524,21 +502,13 @@ class IndexSearch:
             ok = gates.valid((c0, c1))
             self.stats.windows += int(np.count_nonzero(ok))
             lb1 = self.first_bound(aq, (c0, c1))
-            gate = gates.gate if gates.stored is None else gates.at(np.arange(c0, c1))
-            ok &= lb1 < gate
+            ok &= lb1 < gates.at((c0, c1))
             at = np.flatnonzero(ok)
             ws = c0 + at
             inside = self.in_range(aq, ws, screen=True)[0]
             out.append(ws[inside])
             bounds.append(lb1[at[inside]])
         return np.concatenate(out), np.concatenate(bounds)
-
-    @staticmethod
-    def _exclude(rest: np.ndarray, head: np.ndarray, n: int) -> np.ndarray:
-        """``rest`` without the windows of ``head`` (both of windows < n), in order."""
-        seen = np.zeros(n, dtype=bool)
-        seen[head] = True
-        return rest[~seen[rest]]
 
     def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
                lbc: np.ndarray | None, gates: np.ndarray) -> None:  # fmt: skip
