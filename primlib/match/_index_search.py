@@ -363,10 +363,10 @@ class IndexSearch:
             self._few(aq, gates, pool)
             return pool
         head = np.arange(0, aq.n_windows, self.sample)
+        sampled = head.size
         head = head[gates.valid(head)]
-        sampled = max(head.size, 1)
         head = head[self.in_range(aq, head)[0]]
-        share = head.size / sampled  # of the valid windows, those in time-scale range
+        share = head.size / sampled  # of the windows, those valid and in time-scale range
         if head.size > self.first_batch:
             lbs = self.speed_bound(aq, head)
             head = np.sort(head[np.argpartition(lbs, self.first_batch - 1)[: self.first_batch]])
@@ -374,7 +374,7 @@ class IndexSearch:
         known = math.isfinite(pool.combined)
         if known:
             rest = self._screen(aq, gates, pool.combined)
-            rest = rest[~np.isin(rest, head, assume_unique=True)]
+            rest = rest[_not_in(rest, head, aq.n_windows)]
             if rest.size == 0:
                 return pool
             lbs = self.speed_bound(aq, rest)
@@ -477,16 +477,18 @@ class IndexSearch:
     def _below_gate(self, aq: ArcQuery, gates: _Gates, head: np.ndarray,
                     share: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Every valid window not in ``head`` whose time scale is in range and whose shape
-        bound is below its gate, and those bounds. Most windows in time-scale range (a
-        ``share`` of the sample, :meth:`_best_first`): the bound on every window first
-        (:meth:`_screen_shape`); few (a short, nearly straight piece): the time-scale test
-        first (:meth:`_screen`), the bound on those alone. The same windows either way."""
+        bound is below its gate, and those bounds. Most windows valid and in time-scale
+        range (a ``share`` of the sample, :meth:`_best_first`), so that the bound would be
+        taken on every window anyway: the bound first (:meth:`_screen_shape`); few (a
+        short, nearly straight piece; pieces near the length of the primitives): the
+        validity and time-scale tests first (:meth:`_screen`), the bound on what passes,
+        gathered. The same windows either way."""
         if share > self.gather_fraction:
             rest, lb1 = self._screen_shape(aq, gates)
-            keep = ~np.isin(rest, head, assume_unique=True)
+            keep = _not_in(rest, head, aq.n_windows)
         else:
             rest = self._screen(aq, gates, math.inf)
-            rest = rest[~np.isin(rest, head, assume_unique=True)]
+            rest = rest[_not_in(rest, head, aq.n_windows)]
             lb1 = self.first_bound(aq, rest)
             keep = lb1 < gates.at(rest)
         return rest[keep], lb1[keep]
@@ -564,3 +566,11 @@ class IndexSearch:
         # below √2·(3·eps + Δ_b/8); every window within that of the best may be it
         width = math.sqrt(2.0) * (3.0 * eps + 0.125 * aq.level.step)
         return best_and_ties(kept, self.opts.seeds, width)
+
+
+def _not_in(rest: np.ndarray, head: np.ndarray, n: int) -> np.ndarray:
+    """Mask of the values of ``rest`` not in ``head`` (both of integers in [0, n)), from n
+    flags (O(n): np.isin sorts, which cost far more on millions of windows)."""
+    seen = np.zeros(n, dtype=bool)
+    seen[head] = True
+    return ~seen[rest]
