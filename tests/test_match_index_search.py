@@ -83,3 +83,24 @@ def test_the_same_query_twice_in_a_row_is_answered_without_a_second_search(novel
         copy, 0.3, 0.45, 0.05
     )
     assert search.stats.queries == queries + 2
+
+
+@pytest.mark.parametrize("rotation", ["full", "none", "z"])
+def test_both_screen_orders_keep_the_same_windows_with_the_same_bounds(novel, rotation):
+    # the shape bound first (most windows in time-scale range) or the time-scale test first
+    # (few): the same windows below the gate, with the same bounds, the head left out
+    bank, path = novel
+    search = IndexSearch(bank, SearchOptions(rotation=rotation), chunk=256, first_batch=64)
+    aq = search.arc_query(path, 0.2, 0.24, 0.05)  # short: many windows below the gate
+    gates = _Gates.of(aq, 0.05)
+    head = np.arange(0, aq.n_windows, search.sample)
+    first, bounds = search._below_gate(aq, gates, head, share=1.0)
+    later, bounds_later = search._below_gate(aq, gates, head, share=0.0)
+    assert first.size > 0
+    np.testing.assert_array_equal(first, later)
+    np.testing.assert_allclose(bounds, bounds_later, rtol=1e-12, atol=1e-12)
+    assert not np.isin(first, head).any()
+    assert np.all(bounds < gates.gate)
+    # a range of windows is bounded as those windows of the whole array
+    whole = search.first_bound(aq)
+    np.testing.assert_array_equal(search.first_bound(aq, (5, 105)), whole[5:105])
