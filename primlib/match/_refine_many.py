@@ -101,10 +101,16 @@ class _Residuals:
         if d == 3 and self.rotation == "full":
             u0, u1, u2 = u[:, 0], u[:, 1], u[:, 2]
             d0, d1, d2 = dpr[:, 0], dpr[:, 1], dpr[:, 2]
-            cr = np.stack([u1 * d2 - u2 * d1, u2 * d0 - u0 * d2, u0 * d1 - u1 * d0], axis=1)
+            cr = np.empty_like(u)  # u × R dp, written in place (no stack)
+            np.multiply(u1, d2, out=cr[:, 0])
+            cr[:, 0] -= u2 * d1
+            np.multiply(u2, d0, out=cr[:, 1])
+            cr[:, 1] -= u0 * d2
+            np.multiply(u0, d1, out=cr[:, 2])
+            cr[:, 2] -= u1 * d0
             b = (cr @ self.w).transpose(0, 2, 1)  # Σ_j w_c(j) u_j × R dp_j, (m, 2, 3)
             uu = u @ u.transpose(0, 2, 1)
-            tr = np.trace(uu, axis1=1, axis2=2)[:, None, None]
+            tr = (uu[:, 0, 0] + uu[:, 1, 1] + uu[:, 2, 2])[:, None, None]
             inertia = (1.0 + 2e-12) * tr * _EYE3 - uu  # + 1e-12 of its trace: never singular
             return red - b @ np.linalg.solve(inertia, b.transpose(0, 2, 1)), g
         b = (u[:, 0] * dpr[:, 1] - u[:, 1] * dpr[:, 0]) @ self.w  # (m, 2)
@@ -149,16 +155,24 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
 def _free_step(h: np.ndarray, g: np.ndarray, det: np.ndarray) -> np.ndarray:
     """The unconstrained minimisers of m 2x2 quadratics, h^-1 g by Cramer's rule; rows with
     ``det <= 0`` are divided by 1 instead (meaningless: the callers reject those rows)."""
-    return (
-        np.stack(
-            [
-                h[:, 1, 1] * g[:, 0] - h[:, 0, 1] * g[:, 1],
-                h[:, 0, 0] * g[:, 1] - h[:, 1, 0] * g[:, 0],
-            ],
-            axis=1,
-        )
-        / np.where(det > 0, det, 1.0)[:, None]
-    )
+    out = np.empty_like(g)
+    np.multiply(h[:, 1, 1], g[:, 0], out=out[:, 0])
+    out[:, 0] -= h[:, 0, 1] * g[:, 1]
+    np.multiply(h[:, 0, 0], g[:, 1], out=out[:, 1])
+    out[:, 1] -= h[:, 1, 0] * g[:, 0]
+    out /= np.where(det > 0, det, 1.0)[:, None]
+    return out
+
+
+def _times_a(z: np.ndarray) -> np.ndarray:
+    """z @ _AMAT.T for rows z = (x0, x1): (−x0, x1, x0 − x1, x1 − x0), exactly the product's
+    numbers (each a sum of ±1 and 0 multiples: one rounding), without a matrix product."""
+    out = np.empty((z.shape[0], 4))
+    np.negative(z[:, 0], out=out[:, 0])
+    out[:, 1] = z[:, 1]
+    np.subtract(z[:, 0], z[:, 1], out=out[:, 2])
+    np.subtract(z[:, 1], z[:, 0], out=out[:, 3])
+    return out
 
 
 def _steps(jtj, g, lam, z, cvec):
@@ -169,8 +183,8 @@ def _steps(jtj, g, lam, z, cvec):
     h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * _EYE2
     det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
     free = _free_step(h, g, det)
-    slack = cvec - z @ _AMAT.T
-    ok = np.all(free @ _AMAT.T <= slack + 1e-9 * (1.0 + np.abs(cvec)), axis=1) & (det > 0)
+    slack = cvec - _times_a(z)
+    ok = np.all(_times_a(free) <= slack + 1e-9 * (1.0 + np.abs(cvec)), axis=1) & (det > 0)
     bad = np.flatnonzero(~ok)
     if bad.size == 0:
         return free  # the usual case: every free step is feasible
