@@ -28,18 +28,6 @@ __all__ = ["refine_many"]
 _EYE2, _EYE3 = np.eye(2), np.eye(3)
 
 
-def _det(a: np.ndarray) -> np.ndarray:
-    """Determinants of (m, d, d) matrices, d in {2, 3}, by cofactors (orthogonal ones here:
-    ±1, so the sign is never in doubt; ``np.linalg.det``'s LU costs more on small ones)."""
-    if a.shape[-1] == 2:
-        return a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
-    return (
-        a[:, 0, 0] * (a[:, 1, 1] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 1])
-        - a[:, 0, 1] * (a[:, 1, 0] * a[:, 2, 2] - a[:, 1, 2] * a[:, 2, 0])
-        + a[:, 0, 2] * (a[:, 1, 0] * a[:, 2, 1] - a[:, 1, 1] * a[:, 2, 0])
-    )
-
-
 class _Residuals:
     """:class:`._refine._Residual` for m seeds: cost (m,), residual (m, d, k), dp/dx and R.
 
@@ -61,7 +49,9 @@ class _Residuals:
         if self.rotation == "full":
             u, _, vt = np.linalg.svd(h)
             v = vt.transpose(0, 2, 1).copy()
-            v[:, :, -1] *= np.where(_det(u @ vt) > 0, 1.0, -1.0)[:, None]
+            # det(U Vᵀ) = ±1 (orthogonal): LU's sign is never in doubt, and one call costs less
+            # than cofactors' 17 (5 against 14 µs at 2 seeds)
+            v[:, :, -1] *= np.where(np.linalg.det(u @ vt) > 0, 1.0, -1.0)[:, None]
             return v @ u.transpose(0, 2, 1)
         r = np.tile(np.eye(d), (m, 1, 1))
         if self.rotation == "z":
