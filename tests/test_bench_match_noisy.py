@@ -3,21 +3,13 @@ library at 0.1 % and 1 % noise, and one path of three joined pieces, as in the b
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
-
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_match_noisy.py"
+from bench_import import benchmark_modules
 
 
 def _bench():
-    spec = importlib.util.spec_from_file_location("bench_match_noisy", BENCH)
-    bench = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = bench  # its dataclass looks its module up there
-    spec.loader.exec_module(bench)
-    return bench
+    with benchmark_modules("bench_match_noisy") as (bench,):
+        return bench
 
 
 @pytest.mark.slow
