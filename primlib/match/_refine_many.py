@@ -245,12 +245,16 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
     gain, previous = np.zeros(m), np.zeros(m)
     run = cost >= stop
     jtj, g = np.zeros((m, 2, 2)), np.zeros((m, 2))
-    if np.any(run) and not (first and np.any(cost < stop)):
+
+    def going() -> bool:  # a row still steps and (``first``) none has reached ``stop`` yet
+        return bool(np.any(run)) and not (first and np.any(cost < stop))
+
+    if going():
         # the linearisation only of the rows that will step (and no copies of the
         # residuals kept: a row's normal equations are all its next step needs)
         live = np.flatnonzero(run)
         jtj[live], g[live] = resid.normal_equations(res[live], resid.turned(dp[live], r[live]))
-    while np.any(run) and not (first and np.any(cost < stop)):
+    while going():
         act = np.flatnonzero(run)
         step = _steps(jtj[act], g[act], lam[act], z[act], cvec[act])
         still = np.any(step != 0.0, axis=1)
