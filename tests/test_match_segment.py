@@ -208,15 +208,13 @@ def test_the_best_primitive_is_chosen_among_the_failed_search_s_seeds_without_a_
     path = PathPiece(bank.points_of(0)[:n], (n - 1) * DT)
     seg = _Segmenter(Recorder(), bank, path, 0.05, SearchOptions())
     seg.sig = 1
-    last, v = n - 1, 1.0 / (n - 1)
-    ia = 5  # 5 * (1 / 49) != 5 / 49: the probes' and the segment's a differ in the last bit
-    assert ia * v != ia / last
+    ia = 5  # 5 * (1 / 49) != 5 / 49: every end is seg._t's, so a start compares exactly
     seeds = [Candidate(1, 10.0, 40.0, 0.0)]
-    seg.failed = (ia * v, 31 * v, seeds, seeds)
-    near = seg._seeds_near(ia / last, 30 / last)  # one sample shorter, as segment() asks
+    seg.failed = (seg._t(ia), seg._t(31), seeds, seeds)
+    near = seg._seeds_near(seg._t(ia), seg._t(30))  # one sample shorter, as segment() asks
     assert Recorder.calls == []
     assert near[0].x1 - near[0].x0 == pytest.approx(30.0 * 25 / 26)
-    seg._seeds_near(ia / last, 28 / last)  # two samples shorter than the failed search: new
+    seg._seeds_near(seg._t(ia), seg._t(28))  # two samples shorter than the failed search: new
     assert len(Recorder.calls) == 1
 
 

@@ -246,7 +246,7 @@ class _Segmenter:
         if ok.size == 0:
             return None
         at = lo + 1 + int(ok[-1])  # end sample of the longest such prefix
-        a, b = ia / (self.path.n - 1), at / (self.path.n - 1)
+        a, b = self._t(ia), self._t(at)
         short = Candidate(c.prim, c.x0, c.x0 + per * (at - ia), 0.0)
         self.extensions += 1
         near, _, _ = self._try(a, b, [short], self.path.confirm_points(a, b))
@@ -273,35 +273,33 @@ class _Segmenter:
 
         Returns (match, its end, the shortest failing end (None if none), its RMSD, how it
         failed) or None when nothing of ``_MIN_SAMPLES`` samples or more matches."""
-        last = self.path.n - 1
-        v = 1.0 / last
+        last, a = self.path.n - 1, self._t(ia)
         length = min(max(guess, sig), last - ia)
         if self._screened(ia, length):
             return None
         hi, r_hi = None, np.inf
-        found, r = self.probe(ia * v, (ia + length) * v)
+        found, r = self.probe(a, self._t(ia + length))
         while found is None:
             if length <= sig or length < _MIN_SAMPLES - 1:
                 return None
             hi, r_hi, half = ia + length, r, max(sig, length // 2)
             near = int(0.9 * length * math.sqrt(self.eps / r)) if np.isfinite(r) else 0
             failed = self.failed
-            if failed is not None and failed[:2] == (ia * v, hi * v) and failed[3]:
+            if failed is not None and failed[:2] == (a, self._t(hi)) and failed[3]:
                 for at in sorted({min(max(near, half), length - 1), half}, reverse=True):
                     if at >= _MIN_SAMPLES - 1:
                         self.extensions += 1
-                        found, _ = self._stretched(ia * v, hi * v, (ia + at) * v, failed[3])
+                        found, _ = self._stretched(a, self._t(hi), self._t(ia + at), failed[3])
                         if found is not None:
                             return found, ia + at, hi, r_hi, {"probe"}
             length = half
-            found, r = self.probe(ia * v, (ia + length) * v)
+            found, r = self.probe(a, self._t(ia + length))
         return found, ia + length, hi, r_hi, {"probe"} if hi is not None else set()
 
     def longest_prefix(self, ia: int, sig: int, guess: int) -> tuple[int, _Found] | None:
         """The longest matching prefix from sample ia (module notes): its end sample and
         match, or None when no prefix of ``_MIN_SAMPLES`` samples or more matches."""
-        last = self.path.n - 1
-        v = 1.0 / last
+        last, a = self.path.n - 1, self._t(ia)
         first = self._first_match(ia, sig, guess)
         if first is None:
             return None
@@ -315,7 +313,7 @@ class _Segmenter:
                     iv = min(last, ia + max(lo - ia + sig, _gallop(lo - ia, r, self.eps)))
                 else:
                     iv = _split(lo - ia, hi - ia, r_lo, r_hi, self.eps) + ia
-                ext, r = self.extend(ia * v, lo * v, iv * v, found)
+                ext, r = self.extend(a, self._t(lo), self._t(iv), found)
                 if ext is None:
                     hi, tried, r_hi = iv, {"extend"}, r
                     if side < 0:
@@ -335,9 +333,9 @@ class _Segmenter:
             # (neither finds all the other does) matches at hi
             ext = None
             if "extend" not in tried:
-                ext, _ = self.extend(ia * v, lo * v, hi * v, found)
+                ext, _ = self.extend(a, self._t(lo), self._t(hi), found)
             if ext is None and "probe" not in tried:
-                ext, _ = self.probe(ia * v, hi * v)
+                ext, _ = self.probe(a, self._t(hi))
             if ext is None:
                 return lo, found
             lo, found, hi, r_lo, r_hi = hi, ext, None, np.nan, np.inf
@@ -363,15 +361,17 @@ class _Segmenter:
                                  rtol=1e-4)  # fmt: skip
         return refined[int(np.argmin(r))]
 
+    def _t(self, i: int) -> float:
+        """Sample i's normalised time i / (n − 1), one float per sample everywhere (the
+        probes' i·(1/(n − 1)) differed in the last bit and a start compared by == missed)."""
+        return i / (self.path.n - 1)
+
     def _seeds_near(self, a: float, b: float) -> list[Candidate]:
         """Seeds for [a, b]: the last failing whole search's when it started at a and ended
-        at most σ after b (shrunk to [a, b]), else a new search. Starts are compared in
-        samples: the probes' a = i·(1/(n − 1)) and the segment's i/(n − 1) may differ in
-        their last bit."""
+        at most σ after b (shrunk to [a, b]), else a new search."""
         if self.failed is not None:
             fa, fb, seeds, _ = self.failed
-            last = self.path.n - 1
-            if abs(fa - a) * last < 1e-6 and 0 < (fb - b) * last <= self.sig + 1e-6:
+            if fa == a and 0 < (fb - b) * (self.path.n - 1) <= self.sig + 1e-6:
                 k = (b - a) / (fb - a)
                 return [Candidate(c.prim, c.x0, c.x0 + k * (c.x1 - c.x0), c.score) for c in seeds]
         return self.seeder.seeds(self.path, a, b, self.eps)
@@ -411,7 +411,7 @@ class _Segmenter:
             best = self.longest_prefix(ia, sig, guess)
             self.missed = best is None
             if best is not None:
-                segments.append(self.segment(ia / last, best[0] / last, best[1]))
+                segments.append(self.segment(self._t(ia), self._t(best[0]), best[1]))
                 guess = best[0] - ia
                 ia = best[0]
                 advance = sig
@@ -422,9 +422,9 @@ class _Segmenter:
             if last - ib < _MIN_SAMPLES:
                 ib = last  # never leave a sliver too short to match
             if segments and segments[-1].primitive is None:
-                segments[-1] = _unmatched(segments[-1].start, ib / last, d)
+                segments[-1] = _unmatched(segments[-1].start, self._t(ib), d)
             else:
-                segments.append(_unmatched(ia / last, ib / last, d))
+                segments.append(_unmatched(self._t(ia), self._t(ib), d))
             ia = ib
             advance *= 2
             if guess == last:
