@@ -38,6 +38,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from primlib.match._refine import duration_range
+
 if TYPE_CHECKING:
     from primlib.match._options import PathPiece, SearchOptions
 
@@ -308,17 +310,14 @@ def screens(slopes: SlopeRanges, q: np.ndarray, d_lo: float, d_hi: float, rotati
     return True
 
 
-def prefixes_fail(slopes: SlopeRanges, path: PathPiece, ia: int, ells, bank_dt: float,
+def prefixes_fail(slopes: SlopeRanges, path: PathPiece, a: float, ends, bank_dt: float,
                   opts: SearchOptions, eps: float) -> bool:  # fmt: skip
-    """True when :func:`screens` rejects the path's piece from sample ia of ℓ + 1 samples
-    for every ℓ in ``ells`` (stopping at the first it does not), at the samples and over
-    the durations the exact check uses (its points, :func:`._refine.duration_range`)."""
-    v = 1.0 / (path.n - 1)
-    low, high = opts.time_scale
-    for ell in ells:
-        a, b = ia * v, (ia + ell) * v
+    """True when :func:`screens` rejects the path's piece [a, b] for every normalised end b
+    in ``ends`` (stopping at the first it does not), at the samples and over the durations
+    the exact check uses (its points, :func:`._refine.duration_range`)."""
+    for b in ends:
         q = path.at(np.linspace(a, b, path.confirm_points(a, b)))
-        steps = (b - a) * path.duration / bank_dt
-        if not screens(slopes, q, max(low * steps, 1e-6), high * steps, opts.rotation, eps):
+        d_lo, d_hi = duration_range(math.inf, (b - a) * path.duration / bank_dt, opts)
+        if not screens(slopes, q, d_lo, float(d_hi), opts.rotation, eps):
             return False
     return True

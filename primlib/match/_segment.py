@@ -255,12 +255,12 @@ class _Segmenter:
     def _screened(self, ia: int, length: int) -> bool:
         """True when every prefix from ia of ``_MIN_SAMPLES`` to length + 1 samples provably
         fails (:func:`._screen.prefixes_fail`; tried in unmatched stretches, where it holds)."""
-        bank = self.bank
         if not (self.screen and self.missed) or length > _SCREEN_MAX:
             return False
-        self.slopes = self.slopes or SlopeRanges(bank.points, bank.offsets)
-        ells = range(length, _MIN_SAMPLES - 2, -1)  # the longest first: it fails most
-        if not prefixes_fail(self.slopes, self.path, ia, ells, bank.dt, self.opts, self.eps):
+        self.slopes = self.slopes or SlopeRanges(self.bank.points, self.bank.offsets)
+        ends = [self._t(ia + ell) for ell in range(length, _MIN_SAMPLES - 2, -1)]
+        a, opts = self._t(ia), self.opts  # the longest prefix first: it fails most
+        if not prefixes_fail(self.slopes, self.path, a, ends, self.bank.dt, opts, self.eps):
             return False
         self.rejected += 1
         return True
