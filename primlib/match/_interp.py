@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cubic_at", "cubic_rows"]
+__all__ = ["coefficients", "cubic_at", "cubic_rows"]
+
+
+def coefficients(p0, p1, p2, p3):
+    """Catmull-Rom's (c1, c2, c3) on the interval p1 -> p2 (neighbours p0, p3): the value
+    is p1 + f (c1 + f (c2 + f c3)) / 2 at the fraction f, the derivative (per sample)
+    (c1 + 2 f c2 + 3 f² c3) / 2."""
+    return p2 - p0, 2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3, 3.0 * (p1 - p2) + p3 - p0
 
 
 def cubic_at(
@@ -42,9 +49,7 @@ def cubic_at(
     i2 = start + i + 1
     i3 = start + np.minimum(i + 2, last)
     p0, p1, p2, p3 = (points.take(j, axis=0) for j in (i0, i1, i2, i3))  # take: ~4x faster
-    c1 = p2 - p0
-    c2 = 2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
-    c3 = 3.0 * (p1 - p2) + p3 - p0
+    c1, c2, c3 = coefficients(p0, p1, p2, p3)
     val = p1 + 0.5 * f * (c1 + f * (c2 + f * c3))
     if not derivative:
         return val
@@ -82,15 +87,13 @@ def cubic_rows(points: np.ndarray, start: np.ndarray, last: np.ndarray, x: np.nd
     p2 = flat.take(i1)
     i1 += (d * (i + 2 <= last))[:, None, :]
     p3 = flat.take(i1)
-    # cubic_at's operations in its order (the same numbers to the last bit), in place:
-    # fewer temporaries, and the factors 0.5·f and 3·f formed once on (m, 1, k)
+    # coefficients()'s operations in their order (the same numbers to the last bit), in
+    # place: fewer temporaries, and the factors 0.5·f and 3·f formed once on (m, 1, k)
     c1 = p2 - p0
     c2 = 2.0 * p0
     c2 -= 5.0 * p1
-    p2 *= 4.0
-    c2 += p2  # 2 p0 − 5 p1 + 4 p2 − p3
-    c2 -= p3
-    p2 *= 0.25  # exact: back to p2
+    c2 += 4.0 * p2
+    c2 -= p3  # 2 p0 − 5 p1 + 4 p2 − p3
     c3 = p1 - p2
     c3 *= 3.0
     c3 += p3

@@ -27,7 +27,7 @@ over t = D·c1 and s = D²·c2 in the time-scale range (cut at powers of two of 
 with the ranges over runs of intervals as long as its longest piece); each term is convex
 in its variable and quadratic between breakpoints, minimised exactly (the two apart: their
 sum is at most the joint minimum). p' on a sample interval is a quadratic in the fraction f
-(:func:`._interp.cubic_at`): its range is taken at f = 0, 1 and its vertex; p'' = c2 + 3fc3
+(:func:`._interp.coefficients`): its range is taken at f = 0, 1 and its vertex; p'' = c2 + 3fc3
 is linear. Empty intervals after each primitive keep a run inside its primitive.
 """
 
@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from primlib.match._interp import coefficients
 from primlib.match._refine import duration_range
 
 if TYPE_CHECKING:
@@ -67,9 +68,7 @@ class SlopeRanges:
         p1 = points[i]
         p2 = points[i + 1]
         p3 = points[np.minimum(i + 2, last[:-1])]
-        c1 = p2 - p0
-        c2 = 2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
-        c3 = 3.0 * (p1 - p2) + p3 - p0
+        c1, c2, c3 = coefficients(p0, p1, p2, p3)
         # p'(f) = (c1 + 2 f c2 + 3 f² c3) / 2: ends and vertex f* = −c2 / (3 c3)
         d0, d1 = 0.5 * c1, 0.5 * (c1 + 2.0 * c2 + 3.0 * c3)
         with np.errstate(divide="ignore", invalid="ignore"):
