@@ -216,3 +216,28 @@ def test_a_fixed_duration_step_is_the_box_qp_s(seed):
     h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * np.eye(2)
     one = np.array([solve_box_qp2(h[i], g[i], z[i], _AMAT, c[i]) for i in range(m)])
     np.testing.assert_allclose(steps, one, rtol=1e-9, atol=1e-9)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), d=st.sampled_from([2, 3]))
+def test_the_hand_written_twins_give_the_general_forms_numbers_to_the_last_bit(seed, d):
+    # cubic_rows writes cubic_at's (coefficients') operations in place, and _times_a the
+    # product with _AMAT entry by entry, for speed: both promise the very same floats
+    from primlib.match._interp import cubic_at, cubic_rows
+    from primlib.match._refine_many import _times_a
+
+    rng = np.random.default_rng(seed)
+    counts = rng.integers(2, 40, size=3)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    points = rng.normal(size=(int(offsets[-1]), d)) * rng.uniform(0.1, 100.0)
+    prim = rng.integers(0, 3, size=5)
+    start, last = offsets[prim][:, None], (counts[prim] - 1)[:, None]
+    x = rng.uniform(-0.5, 1.0, size=(5, 7)) * (last + 0.5)  # ends and beyond: clamped
+    x[:, 0], x[:, -1] = 0.0, last[:, 0]  # exactly on the first and last sample
+    val, der = cubic_rows(points, start, last, x)
+    flat = np.broadcast_to(start, x.shape).ravel(), np.broadcast_to(last + 1, x.shape).ravel()
+    v0, d0 = cubic_at(points, flat[0], flat[1], x.ravel(), derivative=True)
+    np.testing.assert_array_equal(val.transpose(0, 2, 1).reshape(-1, d), v0)
+    np.testing.assert_array_equal(der.transpose(0, 2, 1).reshape(-1, d), d0)
+    z = rng.normal(size=(9, 2)) * 1e3
+    np.testing.assert_array_equal(_times_a(z), z @ _AMAT.T)
