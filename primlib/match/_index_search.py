@@ -455,11 +455,7 @@ class IndexSearch:
         short, nearly straight query it is the one test that sifts), by blocks of windows
         (cache-sized temporaries); counts the valid windows."""
         out = []
-        n = aq.n_windows
-        # blocks of 65,536 windows: 20 % less time than 16,384 (per-call overhead) or
-        # 262,144 (temporaries out of cache)
-        for c0 in range(0, n, 1 << 16):
-            c1 = min(c0 + (1 << 16), n)
+        for c0, c1 in _blocks(aq.n_windows):
             ok = gates.valid((c0, c1))
             self.stats.windows += int(np.count_nonzero(ok))
             ok &= self.in_range(aq, (c0, c1), screen=True)[0]
@@ -498,9 +494,7 @@ class IndexSearch:
         blocks of windows: the time-scale test then reads the few below the gate, and no
         index array of every window is formed."""
         out, bounds = [], []
-        n = aq.n_windows
-        for c0 in range(0, n, 1 << 16):
-            c1 = min(c0 + (1 << 16), n)
+        for c0, c1 in _blocks(aq.n_windows):
             ok = gates.valid((c0, c1))
             self.stats.windows += int(np.count_nonzero(ok))
             lb1 = self.first_bound(aq, (c0, c1))
@@ -566,6 +560,12 @@ class IndexSearch:
         # below √2·(3·eps + Δ_b/8); every window within that of the best may be it
         width = math.sqrt(2.0) * (3.0 * eps + 0.125 * aq.level.step)
         return best_and_ties(kept, self.opts.seeds, width)
+
+
+def _blocks(n: int, size: int = 1 << 16):
+    """The ranges (c0, c1) of n windows taken ``size`` at a time: 65,536 took 20 % less
+    time than 16,384 (per-call overhead) or 262,144 (temporaries out of cache)."""
+    return ((c0, min(c0 + size, n)) for c0 in range(0, n, size))
 
 
 def _not_in(rest: np.ndarray, head: np.ndarray, n: int) -> np.ndarray:
