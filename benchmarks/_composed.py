@@ -53,11 +53,10 @@ def build_library(k: int, machine: Machine, seed: int = 0, db: Path | None = Non
     return lib
 
 
-def first_call(db: Path, machine: str, path: Trajectory, repeat: int = 3, cpu: bool = False):
+def first_call(db: Path, machine: str, path: Trajectory, repeat: int = 3):
     """Median time of the first ``match`` on a freshly opened library file (DuckDB read,
-    index build, segmentation) and of its bank read alone; the last Match. With ``cpu``,
-    also the median CPU seconds of the first match (all of the process's threads: DuckDB
-    reads with several)."""
+    index build, segmentation) and of its bank read alone; the last Match; the median CPU
+    seconds of the first match (all of the process's threads: DuckDB reads with several)."""
     times, reads, cpus, mt = [], [], [], None
     for _ in range(repeat):
         with Library(db) as lb:
@@ -69,8 +68,7 @@ def first_call(db: Path, machine: str, path: Trajectory, repeat: int = 3, cpu: b
             t0 = time.perf_counter()
             lb.bank(machine)
             reads.append(time.perf_counter() - t0)
-    out = (statistics.median(times), statistics.median(reads), mt)
-    return (*out, statistics.median(cpus)) if cpu else out
+    return statistics.median(times), statistics.median(reads), mt, statistics.median(cpus)
 
 
 def build_path(lib: Library, machine: Machine, seed: int = 1):
@@ -104,7 +102,7 @@ def worker(spec: dict) -> dict:
         with Library(db) as lb:
             path, _ = build_path(lb, machine)
             bank = lb.bank(machine.name)
-        first, _, mt, first_cpu = first_call(db, machine.name, path, spec["first"], cpu=True)
+        first, _, mt, first_cpu = first_call(db, machine.name, path, spec["first"])
     index = BankIndex(bank)
     match_path(index, path, eps=EPS)
     warm, warm_cpu = [], []

@@ -309,7 +309,7 @@ def main() -> None:
     # -- first call on each library file (fresh open: nothing cached), then warm calls
     first, reads, warms, firsts = {}, {}, {}, {}
     for k in (1000, 100, 10):  # the 1,000 case first: the process's very first call too
-        first[k], reads[k], firsts[k] = first_call(dbs[k], machine.name, path)
+        first[k], reads[k], firsts[k], _ = first_call(dbs[k], machine.name, path)
     libs = {k: Library(dbs[k]) for k in sizes}
     indexes = {k: BankIndex(libs[k].bank(machine.name)) for k in sizes}
     for k in sizes:
