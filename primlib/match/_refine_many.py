@@ -238,48 +238,86 @@ def _box_qp_many(h: np.ndarray, g: np.ndarray, slack: np.ndarray, tol: np.ndarra
 
 def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, give_up: float,
               first: bool, rtol: float = _GAIN) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """:func:`._refine._gauss_newton` for every row of z at once: the final z and costs."""
+    """:func:`._refine._gauss_newton` for every row of z at once: the final z and costs.
+
+    The state is kept for the running rows only (:class:`_Running`), so a step costs no
+    gathers of every row's state, and the accepted and rejected rows are updated together
+    (``np.where``: the same numbers as updating each set apart)."""
     m = z.shape[0]
     cost, res, dp, r = resid(np.arange(m), z)
-    lam, budget = np.zeros(m), np.full(m, _BUDGET)
-    gain, previous = np.zeros(m), np.zeros(m)
-    run = cost >= stop
-    jtj, g = np.zeros((m, 2, 2)), np.zeros((m, 2))
-
-    def going() -> bool:  # a row still steps and (``first``) none has reached ``stop`` yet
-        return bool(np.any(run)) and not (first and np.any(cost < stop))
-
-    if going():
-        # the linearisation only of the rows that will step (and no copies of the
-        # residuals kept: a row's normal equations are all its next step needs)
-        live = np.flatnonzero(run)
-        jtj[live], g[live] = resid.normal_equations(res[live], resid.turned(dp[live], r[live]))
-    while going():
-        act = np.flatnonzero(run)
-        step = _steps(jtj[act], g[act], lam[act], z[act], cvec[act])
+    out_z, out_cost = z, cost
+    if first and np.any(cost < stop):
+        return out_z, out_cost
+    st = _Running.of(z, cost, cvec, cost >= stop)
+    if st is None:
+        return out_z, out_cost
+    keep = st.rows if st.rows.size < m else slice(None)
+    st.jtj, st.g = resid.normal_equations(res[keep], resid.turned(dp[keep], r[keep]))
+    while True:
+        step = _steps(st.jtj, st.g, st.lam, st.z, st.cvec)
         still = np.any(step != 0.0, axis=1)
-        run[act[~still]] = False
-        act, step = act[still], step[still]
-        if act.size == 0:
+        if not still.all():
+            step = st.drop(still, out_z, out_cost, step)
+            if st.rows.size == 0:
+                break
+        nz = st.z + step
+        ncost, nres, ndp, nr = resid(st.rows, nz)
+        st.budget -= 1
+        better = ncost < st.cost
+        moved = np.abs(step).sum(axis=1)
+        gain = np.where(better, st.cost - ncost, st.gain)
+        previous = np.where(better, st.gain, st.previous)
+        st.z = np.where(better[:, None], nz, st.z)
+        cost = np.where(better, ncost, st.cost)
+        st.lam = np.where(better, np.where(st.lam > 1e-6, st.lam / 10.0, 0.0),
+                          np.maximum(st.lam * 10.0, 1e-4))  # fmt: skip
+        done = (moved < _MOVED) | (gain < rtol * cost) | (cost < stop)
+        done |= hopeless(cost, gain, previous, give_up)
+        ends = np.where(better, done, st.lam > 1e8) | (st.budget <= 0)
+        st.cost, st.gain, st.previous = cost, gain, previous
+        hit = first and bool(np.any(ncost[better] < stop))
+        on = better & ~ends
+        if np.any(on) and not hit:
+            if on.all():
+                st.jtj, st.g = resid.normal_equations(nres, resid.turned(ndp, nr))
+            else:
+                st.jtj[on], st.g[on] = resid.normal_equations(
+                    nres[on], resid.turned(ndp[on], nr[on])
+                )
+        if hit or ends.all():
+            st.drop(np.zeros(ends.shape, bool), out_z, out_cost)
             break
-        nz = z[act] + step
-        ncost, nres, ndp, nr = resid(act, nz)
-        budget[act] -= 1
-        better = ncost < cost[act]
-        acc, rej = act[better], act[~better]
-        moved = np.abs(step[better]).sum(axis=1)
-        previous[acc], gain[acc] = gain[acc], cost[acc] - ncost[better]
-        z[acc], cost[acc] = nz[better], ncost[better]
-        lam[acc] = np.where(lam[acc] > 1e-6, lam[acc] / 10.0, 0.0)
-        lam[rej] = np.maximum(lam[rej] * 10.0, 1e-4)
-        run[rej[lam[rej] > 1e8]] = False
-        done = (moved < _MOVED) | (gain[acc] < rtol * cost[acc]) | (cost[acc] < stop)
-        run[acc[done | hopeless(cost[acc], gain[acc], previous[acc], give_up)]] = False
-        run[budget <= 0] = False
-        on = better.copy()
-        on[better] = run[acc]  # accepted and still running: they step again
-        if np.any(on):
-            jtj[act[on]], g[act[on]] = resid.normal_equations(
-                nres[on], resid.turned(ndp[on], nr[on])
-            )
-    return z, cost
+        if ends.any():
+            st.drop(~ends, out_z, out_cost)
+    return out_z, out_cost
+
+
+class _Running:
+    """The state of :func:`_lockstep`'s running rows: their row numbers, z, cost, damping,
+    budget, last two gains, constraints and normal equations; :meth:`drop` writes the
+    stopped rows' z and cost out and keeps the others."""
+
+    __slots__ = ("rows", "z", "cost", "lam", "budget", "gain", "previous", "cvec", "jtj", "g")
+
+    @classmethod
+    def of(cls, z, cost, cvec, run) -> _Running | None:
+        rows = np.flatnonzero(run)
+        if rows.size == 0:
+            return None
+        st = cls()
+        st.rows = rows
+        every = rows.size == run.size
+        st.z, st.cost = (z.copy(), cost.copy()) if every else (z[rows], cost[rows])
+        st.cvec = cvec if every else cvec[rows]
+        st.lam, st.budget = np.zeros(rows.size), np.full(rows.size, _BUDGET)
+        st.gain, st.previous = np.zeros(rows.size), np.zeros(rows.size)
+        return st
+
+    def drop(self, keep, out_z, out_cost, *more):
+        """Write the rows not in ``keep`` out; keep the others (and ``more``'s rows)."""
+        gone = ~keep
+        out_z[self.rows[gone]] = self.z[gone]
+        out_cost[self.rows[gone]] = self.cost[gone]
+        for name in self.__slots__:
+            setattr(self, name, getattr(self, name)[keep])
+        return more[0][keep] if more else None
