@@ -570,11 +570,14 @@ def sym_eigvals(a: np.ndarray) -> np.ndarray:
     p2 = (a[:, 0, 0] - q) ** 2 + (a[:, 1, 1] - q) ** 2 + (a[:, 2, 2] - q) ** 2 + 2.0 * p1
     p = np.sqrt(p2 / 6.0)
     safe = np.where(p > 0, p, 1.0)
-    b = (a - q[:, None, None] * np.eye(3)) / safe[:, None, None]
+    # B = (A − q·I)/p entry by entry, 1-D arrays (no (m, 3, 3) temporaries); the off-
+    # diagonal entries a_ij − q·0 = a_ij, so every entry is the value the whole-matrix form
+    # gave up to the sign of a zero, and the determinant's products and sums are the same
+    b = [[(a[:, i, j] - q if i == j else a[:, i, j]) / safe for j in range(3)] for i in range(3)]
     det = (
-        b[:, 0, 0] * (b[:, 1, 1] * b[:, 2, 2] - b[:, 1, 2] * b[:, 2, 1])
-        - b[:, 0, 1] * (b[:, 1, 0] * b[:, 2, 2] - b[:, 1, 2] * b[:, 2, 0])
-        + b[:, 0, 2] * (b[:, 1, 0] * b[:, 2, 1] - b[:, 1, 1] * b[:, 2, 0])
+        b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1])
+        - b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0])
+        + b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0])
     )
     phi = np.arccos(np.clip(det / 2.0, -1.0, 1.0)) / 3.0
     l1 = q + 2.0 * p * np.cos(phi)
