@@ -278,13 +278,13 @@ class IndexSearch:
         window centring is needed since Σ q̃ = 0.
         """
         lv, k, span, dil = aq.level, aq.k, aq.span, aq.dil
-        win = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil][ws]
-        pc = win - win.mean(axis=2, keepdims=True)
-        sp = np.einsum("mak,mak->ma", pc, pc)
-        if not aq.per_axis:
-            sp = sp.sum(axis=1)
+        win = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil][ws]  # a copy
         d = aq.qc.shape[1]
         s_ = (win.reshape(-1, k) @ aq.qc).reshape(ws.size, d, d)
+        win -= win.mean(axis=2, keepdims=True)  # centred in place, once s_ is formed
+        sp = np.einsum("mak,mak->ma", win, win)
+        if not aq.per_axis:
+            sp = sp.sum(axis=1)
         sq_ = np.broadcast_to(aq.sq, (ws.size, 3)) if aq.per_axis else aq.sq
         shape = rmsd_from_moments(s_, sp, sq_, k, self.opts.rotation)
         xw = sliding_window_view(lv.x, span)[:, ::dil][ws]
