@@ -132,7 +132,8 @@ def length_scaling(lengths: list[int], library: str = "bundled", timeout: float 
     print(f"\nmatch time and peak memory against path length ({library} library; first call, "
           "one process per path: peak RSS includes the interpreter and numpy)")  # fmt: skip
     print("| path | samples | time | segments | matched | peak RSS | time / first length "
-          "| samples / first length | goal | baseline time, peak | ratio |")  # fmt: skip
+          "| samples / first length | goal (CPU ratio) | baseline time, peak | ratio |"
+          )  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     rows = []
     for kind in ("composed", "novel"):
@@ -145,16 +146,27 @@ def length_scaling(lengths: list[int], library: str = "bundled", timeout: float 
             if "timeout" in r:
                 print(f"| {kind} | {n:,} | > {timeout:.0f} s (stopped) |" + " - |" * 8)
                 continue
-            first = first or (n, r["seconds"])
+            first = first or (n, r["seconds"], r["cpu_seconds"])
             ratio, grow = r["seconds"] / first[1], n / first[0]
-            goal = _length_goal(n, grow, ratio, r)
+            cpu_ratio = r["cpu_seconds"] / first[2]  # the goal's ratio: less the load's
+            goal = _length_goal(n, grow, cpu_ratio, r)
             base = (f"> {timeout:.0f} s | -" if "timeout" in old else
-                    f"{old['seconds']:.1f} s, {old['peak_mb']:.0f} MB | "
-                    f"{old['seconds'] / r['seconds']:.1f}x") if old else "- | -"  # fmt: skip
-            print(f"| {kind} | {n:,} | {r['seconds']:.1f} s | {r['segments']} | "
-                  f"{100 * r['matched']:.0f} % | {r['peak_mb']:.0f} MB | x{ratio:.1f} | "
+                    f"{old['seconds']:.1f} s (CPU {old['cpu_seconds']:.1f} s), "
+                    f"{old['peak_mb']:.0f} MB | {old['seconds'] / r['seconds']:.1f}x (CPU "
+                    f"{old['cpu_seconds'] / r['cpu_seconds']:.1f}x), same segments: "
+                    f"{'yes' if _same(old, r) else 'NO'}") if old else "- | -"  # fmt: skip
+            print(f"| {kind} | {n:,} | {r['seconds']:.1f} s (CPU {r['cpu_seconds']:.1f} s) | "
+                  f"{r['segments']} | {100 * r['matched']:.0f} % | {r['peak_mb']:.0f} MB | "
+                  f"x{ratio:.1f} (CPU x{cpu_ratio:.1f}) | "
                   f"x{grow:.1f} | {goal} | {base} |")  # fmt: skip
     return rows
+
+
+def _same(old: dict, new: dict) -> bool:
+    """The same segments (ends, primitives) and RMSDs to 1e-12 of each (round-off)."""
+    if old["cuts"] != new["cuts"] or len(old.get("rmsds", [])) != len(new.get("rmsds", [])):
+        return False
+    return bool(np.allclose(old.get("rmsds", []), new.get("rmsds", []), rtol=1e-12, atol=0))
 
 
 def _length_goal(n: int, grow: float, ratio: float, r: dict) -> str:
