@@ -114,10 +114,12 @@ class _Residuals:
 
 def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
                 opts: SearchOptions, target: float = 0.0, give_up: float = np.inf,
-                first: bool = False, points: int | None = None, rtol: float = _GAIN):  # fmt: skip
+                first: bool = False, points: int | None = None, rtol: float = _GAIN,
+                samples: np.ndarray | None = None):  # fmt: skip
     """:func:`._refine.refine` of every candidate, in lockstep (module notes); with
     ``first``, all stop as soon as one is below ``target``; a seed whose step gained less
-    than ``rtol`` of its cost has converged.
+    than ``rtol`` of its cost has converged. ``samples``: the path at the ``points``
+    uniform times of [a, b] when the caller has them (``path.at(np.linspace(a, b, k))``).
 
     Returns the refined candidates and their Kabsch RMSD at the ``points`` uniform times
     (default ``opts.refine_points``) the refinement ran on, what :func:`._refine.piece_rmsd`
@@ -133,11 +135,13 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
     rows = np.flatnonzero(hi >= lo)
     if rows.size == 0:
         return out, rmsd
-    prim, z = prim[rows], z[rows]
+    if rows.size < len(cands):
+        prim, z, lo, hi = prim[rows], z[rows], lo[rows], hi[rows]
     last = bank.offsets[prim + 1] - bank.offsets[prim] - 1.0
-    cvec = np.stack([np.zeros(rows.size), last, -lo[rows], hi[rows]], axis=1)
+    cvec = np.stack([np.zeros(rows.size), last, -lo, hi], axis=1)
     k = opts.refine_points if points is None else points
-    resid = _Residuals(bank, prim, path.at(np.linspace(a, b, k)), opts.rotation)
+    q = path.at(np.linspace(a, b, k)) if samples is None else samples
+    resid = _Residuals(bank, prim, q, opts.rotation)
     zf, cost = _lockstep(resid, z, cvec, target * target * k, give_up * give_up * k, first,
                          rtol)  # fmt: skip
     for j, i in enumerate(rows):
@@ -169,19 +173,20 @@ def _times_a(z: np.ndarray) -> np.ndarray:
     return out
 
 
-def _steps(jtj, g, lam, z, cvec):
+def _steps(jtj, g, lam, z, cvec, tol=None):
     """Damped Gauss–Newton steps under A z ≤ c: the free 2×2 solution where feasible, the
     box QP of :func:`._refine.solve_box_qp2` elsewhere (in closed form for a fixed
-    duration)."""
+    duration). ``tol``: the constraints' tolerance 1e-9·(1 + |c|), if the caller keeps it."""
     dg = np.diagonal(jtj, axis1=1, axis2=2)
     h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * _EYE2
     det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
     free = _free_step(h, g, det)
     slack = cvec - _times_a(z)
-    ok = np.all(_times_a(free) <= slack + 1e-9 * (1.0 + np.abs(cvec)), axis=1) & (det > 0)
-    bad = np.flatnonzero(~ok)
-    if bad.size == 0:
+    tol = 1e-9 * (1.0 + np.abs(cvec)) if tol is None else tol
+    ok = (_times_a(free) <= slack + tol).all(axis=1) & (det > 0)
+    if ok.all():
         return free  # the usual case: every free step is feasible
+    bad = np.flatnonzero(~ok)
     # a fixed duration (time scale range of one value): the feasible set is the segment
     # x1 − x0 = lo, so the QP is one-dimensional along (1, 1), its minimiser clipped
     line = np.abs(cvec[bad, 2] + cvec[bad, 3]) <= 1e-12 * (1.0 + np.abs(cvec[bad, 3]))
@@ -193,7 +198,7 @@ def _steps(jtj, g, lam, z, cvec):
         free[on] = t[:, None]
         bad = bad[~line]
     if bad.size:
-        free[bad] = _box_qp_many(h[bad], g[bad], slack[bad], 1e-9 * (1.0 + np.abs(cvec[bad])))
+        free[bad] = _box_qp_many(h[bad], g[bad], slack[bad], tol[bad])
     return free
 
 
@@ -258,7 +263,7 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
     keep = st.rows if st.rows.size < m else slice(None)
     st.jtj, st.g = resid.normal_equations(res[keep], resid.turned(dp[keep], r[keep]))
     while True:
-        step = _steps(st.jtj, st.g, st.lam, st.z, st.cvec)
+        step = _steps(st.jtj, st.g, st.lam, st.z, st.cvec, st.tol)
         still = np.any(step != 0.0, axis=1)
         if not still.all():
             step = st.drop(still, out_z, out_cost, step)
@@ -301,7 +306,8 @@ class _Running:
     budget, last two gains, constraints and normal equations; :meth:`drop` writes the
     stopped rows' z and cost out and keeps the others."""
 
-    __slots__ = ("rows", "z", "cost", "lam", "budget", "gain", "previous", "cvec", "jtj", "g")
+    __slots__ = ("rows", "z", "cost", "lam", "budget", "gain", "previous", "cvec", "tol", "jtj",
+                 "g")  # fmt: skip
 
     @classmethod
     def of(cls, z, cost, cvec, run) -> _Running | None:
@@ -313,6 +319,7 @@ class _Running:
         every = rows.size == run.size
         st.z, st.cost = (z.copy(), cost.copy()) if every else (z[rows], cost[rows])
         st.cvec = cvec if every else cvec[rows]
+        st.tol = 1e-9 * (1.0 + np.abs(st.cvec))  # the constraints' tolerance (_steps)
         st.lam, st.budget = np.zeros(rows.size), np.full(rows.size, _BUDGET)
         st.gain, st.previous = np.zeros(rows.size), np.zeros(rows.size)
         return st

@@ -35,10 +35,9 @@ matches" is monotone in b, and always a prefix that matches followed by one that
   stretch already matches): a success is a match like any other; a failure moves the upper
   end but proves nothing, and is followed by the longest prefix the match's own fit keeps
   provably within ε up to there (:meth:`_Segmenter.within`: at a join, the join itself).
-  The search stops only when the prefix one step (≤ σ) longer
-  fails both ways — the match stretched and the whole search (seeds from
-  :mod:`._index_search`, or the time-uniform grid at a fixed time scale, refined) — so a
-  prefix is never cut short because the match
+  The search stops only when the prefix one step (≤ σ) longer fails both ways — the match
+  stretched and the whole search (seeds from :mod:`._index_search`, or the time-uniform
+  grid at a fixed time scale, refined) — so a prefix is never cut short because the match
   followed so far left the path while another primitive goes on. On a novel path this
   leaves about two whole searches per segment (the first match, the final failure) where
   the bisection ran about eleven.
@@ -157,7 +156,7 @@ class _Segmenter:
         self.slopes, self.missed = None, False  # _screened's tables; the last start failed
         self.screen = opts.rotation != "full" and SlopeRanges.rows(bank) <= _SCREEN_BANK
 
-    def _try(self, a: float, b: float, seeds: list[Candidate], kc: int):
+    def _try(self, a: float, b: float, seeds: list[Candidate], kc: int, q=None):
         """A seed within eps of [a, b] as it comes or once refined (or None), and every
         seed refined, with its RMSD (those of a primitive too short for the time-scale range
         left out: :func:`._refine_many.refine_many` clamps the others into it).
@@ -169,7 +168,8 @@ class _Segmenter:
         bank, path, opts, eps = self.bank, self.path, self.opts, self.eps
         # converged to 1e-4 of the cost: the RMSD only places the next split
         refined, r = refine_many(bank, seeds, path, a, b, opts, target=eps * (1 - 1e-9),
-                                 give_up=eps, first=True, points=kc, rtol=1e-4)  # fmt: skip
+                                 give_up=eps, first=True, points=kc, rtol=1e-4,
+                                 samples=q)  # fmt: skip
         refined, r = _fitting(refined, r)
         hit = np.flatnonzero(r < eps)
         found = _Found(refined[hit[0]], float(r[hit[0]])) if hit.size else None
@@ -197,7 +197,7 @@ class _Segmenter:
             self.rejected += 1  # no primitive can be within eps: the exact check would say so
             return None, np.inf
         seeds = self.seeder.seeds(self.path, a, b, self.eps)
-        found, refined, r = self._try(a, b, seeds, kc)
+        found, refined, r = self._try(a, b, seeds, kc, q)  # q: the samples rejects had
         if found is None:
             self.failed = (a, b, seeds, [refined[i] for i in np.argsort(r, kind="stable")])
         return found, float(r.min(initial=np.inf))
