@@ -35,7 +35,7 @@ __all__ = ["ArcIndex", "Level", "ArcSamples", "ArcQuery"]
 class Level:
     step: float
     pts: np.ndarray  # (M, d) centred per primitive
-    prim: np.ndarray  # (M,)
+    prim: np.ndarray  # (M,) int32
     x: np.ndarray  # (M,) fractional sample index in the primitive
     garc: np.ndarray  # (M,) global arc coordinate (primitive arcs laid end to end)
     left: np.ndarray  # (M,) arc length from this point to the primitive's end
@@ -151,10 +151,12 @@ class ArcIndex:
         n_lv0 = np.floor(length / step0 + 1e-9).astype(np.int64) + 1
         # per-primitive values spread to the points by np.repeat (2-3x cheaper than
         # gathering them by ``prim``: a fine index has millions of points)
-        prim = np.repeat(np.arange(k), n_lv0)
+        # int32 (an index holds at most a few million points): half the memory of int64 for
+        # the primitive of every point at every level, and for the local counter
+        prim = np.repeat(np.arange(k, dtype=np.int32), n_lv0)
         base = np.concatenate([[0], np.cumsum(n_lv0)])
-        local = np.arange(base[-1])
-        local -= np.repeat(base[:-1], n_lv0)
+        local = np.arange(base[-1], dtype=np.int32)
+        local -= np.repeat(base[:-1].astype(np.int32), n_lv0)
         arc_local = local * step0
         # arc -> sample index per primitive: one interp on a globally monotone arc axis
         g_samples, sample_idx, gap = sm.garc, sm.x, sm.gap
