@@ -241,3 +241,29 @@ def test_the_hand_written_twins_give_the_general_forms_numbers_to_the_last_bit(s
     np.testing.assert_array_equal(der.transpose(0, 2, 1).reshape(-1, d), d0)
     z = rng.normal(size=(9, 2)) * 1e3
     np.testing.assert_array_equal(_times_a(z), z @ _AMAT.T)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), d=st.sampled_from([2, 3]))
+def test_the_curve_table_gives_cubic_rows_numbers_to_the_last_bit(seed, d):
+    # the refinement evaluates the stored curves from CurveTable's precomputed coefficients
+    # for speed: the same floats as cubic_rows, at the ends and at two-sample curves too,
+    # with curves of one sample (none of their own intervals) among them
+    from primlib.match._interp import CurveTable, cubic_rows
+
+    rng = np.random.default_rng(seed)
+    counts = rng.integers(2, 40, size=4)
+    counts[rng.integers(0, 4)] = 2
+    counts = np.insert(counts, rng.integers(0, 5), 1)  # a one-sample curve, never queried
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    points = rng.normal(size=(int(offsets[-1]), d)) * rng.uniform(0.1, 100.0)
+    table = CurveTable(points, offsets)
+    for _ in range(3):  # curves formed as first asked for, then reused
+        prim = rng.choice(np.flatnonzero(counts >= 2), size=6)
+        last = (counts[prim] - 1)[:, None]
+        x = rng.uniform(-0.5, 1.0, size=(6, 9)) * (last + 0.5)
+        x[:, 0], x[:, -1] = 0.0, last[:, 0]
+        val, der = table.rows(prim, last, x)
+        v0, d0 = cubic_rows(points, offsets[prim][:, None], last, x)
+        np.testing.assert_array_equal(val, v0)
+        np.testing.assert_array_equal(der, d0)

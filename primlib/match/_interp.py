@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["coefficients", "cubic_at", "cubic_rows"]
+__all__ = ["coefficients", "cubic_at", "cubic_rows", "CurveTable"]
 
 
 def coefficients(p0, p1, p2, p3):
@@ -111,3 +111,78 @@ def cubic_rows(points: np.ndarray, start: np.ndarray, last: np.ndarray, x: np.nd
     c2 += c1
     c2 *= 0.5  # 0.5 (c1 + f (2 c2 + 3 f c3))
     return val, c2
+
+
+class CurveTable:
+    """:func:`cubic_rows` from a table of every interval's (p1, c1, c2, c3) (Catmull-Rom's
+    :func:`coefficients` at the interval's start sample): one gather of each and the value
+    and derivative's Horner steps, no neighbour indices and no coefficient arithmetic per
+    query (half the time of :func:`cubic_rows` or less), the same numbers to the last bit
+    (the table holds what :func:`cubic_rows` computes, with its operations in their order).
+
+    A curve's rows are formed the first time a query asks for it: the table's arrays are
+    allocated empty, so only the curves a search refines on take memory.
+
+    Parameters
+    ----------
+    points : array, shape (N, d)
+        Concatenated samples of the curves.
+    offsets : array of int, shape (k + 1,)
+        Curve i is ``points[offsets[i]:offsets[i + 1]]``.
+    """
+
+    def __init__(self, points: np.ndarray, offsets: np.ndarray) -> None:
+        self.points = np.ascontiguousarray(points, dtype=float)
+        self.offsets = np.asarray(offsets)
+        spans = np.maximum(np.diff(self.offsets) - 1, 0)  # intervals of each curve
+        self.first = np.concatenate([[0], np.cumsum(spans)])[:-1]  # its first table row
+        self.done = np.zeros(spans.size, dtype=bool)
+        self.d = self.points.shape[1]
+        self.flat = [np.empty(int(spans.sum()) * self.d) for _ in range(4)]  # p1, c1, c2, c3
+
+    def _build(self, curves: np.ndarray) -> None:
+        d = self.d
+        for c in curves.tolist():
+            q = self.points[self.offsets[c] : self.offsets[c + 1]]
+            if q.shape[0] >= 2:
+                # interval i's neighbours clamped at the ends, as cubic_rows takes them
+                p0, p1 = np.concatenate([q[:1], q[:-2]]), q[:-1]
+                p2, p3 = q[1:], np.concatenate([q[2:], q[-1:]])
+                c2 = 2.0 * p0
+                c2 -= 5.0 * p1
+                c2 += 4.0 * p2
+                c2 -= p3
+                c3 = p1 - p2
+                c3 *= 3.0
+                c3 += p3
+                c3 -= p0
+                r0 = int(self.first[c]) * d
+                for out, v in zip(self.flat, (p1, p2 - p0, c2, c3), strict=True):
+                    out[r0 : r0 + v.size] = v.ravel()
+            self.done[c] = True
+
+    def rows(self, curve: np.ndarray, last: np.ndarray, x: np.ndarray):
+        """:func:`cubic_rows` for rows of queries ``x`` (m, k) on curves ``curve`` (m,) of
+        ``last`` + 1 samples (m, 1): values and d/dx, shapes (m, d, k)."""
+        need = curve[~self.done[curve]]
+        if need.size:
+            self._build(np.unique(need))
+        d = self.d
+        x = np.minimum(np.maximum(x, 0.0), last)
+        i = np.minimum(x.astype(np.int64), last - 1)  # floor: x >= 0
+        f = (x - i)[:, None, :]
+        at = ((self.first[curve][:, None] + i) * d)[:, None, :] + np.arange(d)[:, None]
+        p1, c1, c2, c3 = (t.take(at) for t in self.flat)
+        val = f * c3  # cubic_rows' Horner steps in their order
+        val += c2
+        val *= f
+        val += c1
+        val *= 0.5 * f
+        val += p1
+        c3 *= 3.0 * f
+        c2 *= 2.0
+        c2 += c3
+        c2 *= f
+        c2 += c1
+        c2 *= 0.5
+        return val, c2

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from primlib.match._interp import cubic_rows
+from primlib.match._interp import CurveTable, cubic_rows
 from primlib.match._kabsch import _rotation_2d
 from primlib.match._options import Candidate, PathPiece, SearchOptions
 from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, clamp_many, hopeless
@@ -32,10 +32,12 @@ class _Residuals:
     """:class:`._refine._Residual` for m seeds: cost (m,), residual (m, d, k), dp/dx and R.
 
     Pieces are laid out (m, d, k), each coordinate a contiguous run of the k points: what a
-    point's weights multiply then broadcasts along it (:func:`._interp.cubic_rows`)."""
+    point's weights multiply then broadcasts along it (:func:`._interp.cubic_rows`, or
+    :meth:`._interp.CurveTable.rows` when given the table)."""
 
-    def __init__(self, bank: BankIndex, prim: np.ndarray, q: np.ndarray, rotation: str):
-        self.bank, self.prim, self.rotation = bank, prim, rotation
+    def __init__(self, table: CurveTable | None, bank: BankIndex, prim: np.ndarray,
+                 q: np.ndarray, rotation: str):  # fmt: skip
+        self.table, self.bank, self.prim, self.rotation = table, bank, prim, rotation
         self.start = bank.offsets[prim][:, None]
         self.last = bank.offsets[prim + 1][:, None] - self.start - 1
         self.qc = q - q.mean(axis=0)
@@ -66,7 +68,10 @@ class _Residuals:
         """Cost (m,), residual (m, d, k), and the derivative along the curve and the
         rotation (:meth:`turned` makes R·dp of them: only accepted steps need it)."""
         x = z[:, :1] + (z[:, 1:] - z[:, :1]) * self.s
-        p, dp = cubic_rows(self.bank.points, self.start[rows], self.last[rows], x)
+        if self.table is None:
+            p, dp = cubic_rows(self.bank.points, self.start[rows], self.last[rows], x)
+        else:  # the same numbers from the coefficients formed once
+            p, dp = self.table.rows(self.prim[rows], self.last[rows], x)
         pc = p - p.sum(axis=2, keepdims=True) / p.shape[2]  # the mean, without its wrapper
         if self.rotation == "none":  # R = I: no product, and no rotation kept
             r, res = np.empty((pc.shape[0], 0, 0)), self.qt - pc
@@ -115,11 +120,13 @@ class _Residuals:
 def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: float, b: float,
                 opts: SearchOptions, target: float = 0.0, give_up: float = np.inf,
                 first: bool = False, points: int | None = None, rtol: float = _GAIN,
-                samples: np.ndarray | None = None):  # fmt: skip
+                samples: np.ndarray | None = None, table: CurveTable | None = None):  # fmt: skip
     """:func:`._refine.refine` of every candidate, in lockstep (module notes); with
     ``first``, all stop as soon as one is below ``target``; a seed whose step gained less
     than ``rtol`` of its cost has converged. ``samples``: the path at the ``points``
-    uniform times of [a, b] when the caller has them (``path.at(np.linspace(a, b, k))``).
+    uniform times of [a, b] when the caller has them (``path.at(np.linspace(a, b, k))``);
+    ``table``: the bank's :class:`._interp.CurveTable`, kept across calls by the caller
+    (the same numbers as without it, sooner).
 
     Returns the refined candidates and their Kabsch RMSD at the ``points`` uniform times
     (default ``opts.refine_points``) the refinement ran on, what :func:`._refine.piece_rmsd`
@@ -141,7 +148,7 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
     cvec = np.stack([np.zeros(rows.size), last, -lo, hi], axis=1)
     k = opts.refine_points if points is None else points
     q = path.at(np.linspace(a, b, k)) if samples is None else samples
-    resid = _Residuals(bank, prim, q, opts.rotation)
+    resid = _Residuals(table, bank, prim, q, opts.rotation)
     zf, cost = _lockstep(resid, z, cvec, target * target * k, give_up * give_up * k, first,
                          rtol)  # fmt: skip
     for j, i in enumerate(rows):

@@ -65,6 +65,7 @@ from primlib.match._bank import BankIndex, as_index
 from primlib.match._checks import check_path_samples
 from primlib.match._grid import GridSearch
 from primlib.match._index_search import IndexSearch
+from primlib.match._interp import CurveTable
 from primlib.match._kabsch import ROTATION_MODES, kabsch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._refine import piece_rmsd, prim_at
@@ -76,17 +77,12 @@ from primlib.match._types import Segment
 if TYPE_CHECKING:
     from primlib.store import Bank
 
-__all__ = [
-    "segment_path",
-    "segment_with",
-    "Seeder",
-    "check_options",
-    "resolve_options",
-    "drop_short",
-]
+__all__ = ["segment_path", "segment_with", "Seeder", "check_options", "resolve_options",
+           "drop_short"]  # fmt: skip
 
 _MIN_SAMPLES = 8  # shortest piece probed, in path samples
 _SCREEN_MAX, _SCREEN_BANK = 32, 1 << 16  # screened: first guesses, banks up to (table rows)
+_TABLE_ROWS = 1 << 17  # samples of a bank whose curves the refinements tabulate (CurveTable)
 
 
 class Seeder(Protocol):
@@ -155,6 +151,10 @@ class _Segmenter:
         self.failed: tuple[float, float, list[Candidate], list[Candidate]] | None = None
         self.slopes, self.missed = None, False  # _screened's tables; the last start failed
         self.screen = opts.rotation != "full" and SlopeRanges.rows(bank) <= _SCREEN_BANK
+        # the refinements' curves from a table (CurveTable) on banks up to _TABLE_ROWS samples
+        # (on 1,000 of 2,000: 180 MB more, a build per curve refined, more time than saved)
+        small = bank.points.shape[0] <= _TABLE_ROWS
+        self.table = CurveTable(bank.points, bank.offsets) if small else None
 
     def _try(self, a: float, b: float, seeds: list[Candidate], kc: int, q=None):
         """A seed within eps of [a, b] as it comes or once refined (or None), and every
@@ -169,7 +169,7 @@ class _Segmenter:
         # converged to 1e-4 of the cost: the RMSD only places the next split
         refined, r = refine_many(bank, seeds, path, a, b, opts, target=eps * (1 - 1e-9),
                                  give_up=eps, first=True, points=kc, rtol=1e-4,
-                                 samples=q)  # fmt: skip
+                                 samples=q, table=self.table)  # fmt: skip
         refined, r = _fitting(refined, r)
         hit = np.flatnonzero(r < eps)
         found = _Found(refined[hit[0]], float(r[hit[0]])) if hit.size else None
@@ -358,7 +358,7 @@ class _Segmenter:
         # moved RMSDs in their 6th digit (a primitive too short for the time-scale range
         # comes back at inf: never the lowest, the match being finite)
         refined, r = refine_many(bank, cands, path, a, b, opts, give_up=found.rmsd, points=kc,
-                                 rtol=1e-4)  # fmt: skip
+                                 rtol=1e-4, table=self.table)  # fmt: skip
         return refined[int(np.argmin(r))]
 
     def _t(self, i: int) -> float:
