@@ -13,6 +13,7 @@ from stage_helpers import stage_pair as _stage_pair
 from primlib import InputError
 from primlib.greybox import TERMS, Pair, fit_greybox
 from primlib.greybox._features import ripple_columns
+from primlib.greybox._robust import HOLD, SLOW, moving, robust_fit, undetermined
 from primlib.plant import Machine, RealisticMachine, invert
 
 
@@ -94,6 +95,9 @@ def test_nothing_is_invented_on_a_linear_machine():
     assert np.all(gb.w == 0)
     nonlinear = [TERMS.index(t) for t in ("coulomb", "stribeck", "bias")]
     assert np.all(gb.coef[:, nonlinear] == 0)
+    # no friction found, so no row of a stored input is replaced (GreyBox.clean leaves them)
+    assert np.all(np.isnan(gb.robust_coef)) and not np.any(gb.hard)
+    np.testing.assert_array_equal(gb.clean(pairs[0].u, pairs[0].y), pairs[0].u)
     path = _loop(901, 9.0, 1.1, 2.0)
     assert np.max(np.abs(gb.inverse(path) - invert(heavy, path))) < 0.05 * np.max(
         np.abs(invert(heavy, path))
@@ -205,3 +209,91 @@ def test_the_ripple_grid_scored_in_batches_is_the_one_frequency_formula():
     batched = _fit._sse_batch(A, G00, b0, r2, r, x, step, on, ws)
     assert np.allclose(batched, [one(w) for w in ws], rtol=0, atol=1e-10 * r2)
     assert abs(ws[np.argmin(batched)] - 1.2566) < ws[1] - ws[0]  # and it finds the ripple
+
+
+def _smooth_path(n: int, rng, still: int | None) -> np.ndarray:
+    """A rest-to-rest 3-D path (mm) with a reversal or two per axis; axis ``still`` rests."""
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    bump = s**3 * (10 - 15 * s + 6 * s**2)
+    path = 20 * bump + rng.uniform(4, 8, 3) * np.sin(2 * np.pi * rng.uniform(1, 2, 3) * s) * (
+        s * (1 - s) * 4
+    )
+    if still is not None:
+        path[:, still] = 0.0
+    return path
+
+
+def test_rows_a_path_does_not_determine_do_not_bias_the_friction():
+    # Coulomb friction 0.3 on every axis. Each stored input is the exact inverse (linear part
+    # plus 0.3 sgn(v)); where an axis rests, ILC would have left whatever input it had there,
+    # anything the static friction holds: here a smooth wander of +-0.8 of it. The machine
+    # follows each path with its input (a resting axis stays put, exactly; elsewhere within
+    # 5 um: the stick at a reversal), so (input, path) is a converged pair.
+    fc = 0.3
+    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    rm = RealisticMachine.from_machine(xyz, coulomb=fc)
+    lin = rm.nominal()
+    rng = np.random.default_rng(5)
+    pairs, rest = [], []
+    for k, still in enumerate([None, 1, 0, None, 2]):
+        path = _smooth_path(400 + 50 * k, rng, still)
+        v = np.diff(path, axis=0, append=path[-1:]) / lin.dt
+        u = invert(lin, path) + fc * np.sign(np.where(np.abs(v) > 1e-9, v, 0.0))
+        if still is not None:
+            t = np.linspace(0, 1, len(u))
+            u[:, still] = 0.8 * fc * np.sin(2 * np.pi * rng.uniform(2, 5) * t + rng.uniform(0, 6))
+        y = rm.simulate(u)
+        assert np.max(np.abs(y - path)) < 5e-3
+        if still is not None:
+            assert np.all(y[:, still] == 0.0)  # held by the friction
+            rest.append((k, still))
+        pairs.append(Pair(u, path))
+    gb = fit_greybox(lin, pairs, linear=False)
+    assert np.all(gb.hard)  # a plain Coulomb machine: the hard sign on every axis
+    c = dict(zip(TERMS, gb.coef.T, strict=True))
+    # within 1 % (the wander alone, fitted as it was, put it 5-10 % off; the smooth tanh
+    # sign took another 5 %)
+    np.testing.assert_allclose(c["coulomb"] + c["stribeck"], fc, rtol=0.01)
+    for k, axis in rest:
+        cleaned = gb.clean(pairs[k].u, pairs[k].y)
+        # the wander is replaced by what the fit says stands there (the bias: ~0)
+        assert np.max(np.abs(cleaned[:, axis])) < 0.02 * fc
+        # where the path moves an axis it determines its input: the stored one is kept
+        for a in set(range(3)) - {axis}:
+            v = np.diff(pairs[k].y[:, a], append=pairs[k].y[-1, a]) / lin.dt
+            on = moving(v, gb.speed[a])
+            assert np.mean(on) > 0.97
+            np.testing.assert_array_equal(cleaned[on, a], pairs[k].u[on, a])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_robust_fit_finds_the_model_and_exactly_the_rows_that_break_it(seed):
+    # r = F c + noise sigma, with 10 % of the rows off by 20-50 sigma: the bisquare fit
+    # recovers c to a few sigma / sqrt(n); of those rows it flags the slow ones (below
+    # SLOW of the speed, where an axis may stick) and no others, and every resting row
+    rng = np.random.default_rng(seed)
+    n, sigma, speed = 3000, 0.01, 1.0
+    v = rng.uniform(-2 * SLOW, 2 * SLOW, n) * speed
+    v[:50] = 0.0  # at rest
+    zero = np.zeros(n)
+    # the columns as in TERMS: velocity, acceleration, lag, Coulomb, Stribeck, bias
+    F = np.c_[v, zero, zero, np.sign(rng.normal(size=n)), zero, np.ones(n)]
+    c = np.array([0.7, 0.0, 0.0, 0.3, 0.0, -0.05])
+    r = F @ c + sigma * rng.normal(size=n)
+    bad = rng.random(n) < 0.1
+    r[bad] += rng.choice([-1, 1], bad.sum()) * rng.uniform(20, 50, bad.sum()) * sigma
+    rows = moving(v, speed)
+    coef, scale = robust_fit(F, r, rows)
+    # the velocity column spans +-0.1, the others +-1: its coefficient 10x looser
+    tol = 15 * sigma / np.sqrt(n) * np.array([1 / (2 * SLOW), 1, 1, 1, 1, 1])
+    assert np.all(np.abs(coef - c) < tol)
+    # the MAD counts the bad rows too: (1 - 0.1) P(|Z| < q) = 1/2 gives q = 0.765, so the
+    # scale is 1.4826 x 0.765 = 1.13 sigma (the cut-off 5.3 sigma: still no Gaussian row)
+    assert scale == pytest.approx(1.134 * sigma, rel=0.06)
+    slow = np.abs(v) < SLOW * speed
+    # every bad row is within HOLD x 0.3 of the fit: what static friction can hold
+    np.testing.assert_array_equal(undetermined(F, r, coef, scale, speed), (bad & slow) | ~rows)
+    # a row further off than that moved the machine (or failed to against more than
+    # friction): its path determines it, slow or at rest
+    far = r + np.where(bad, np.sign(r - F @ coef) * (HOLD * 0.3 + 0.1), 0.0)
+    np.testing.assert_array_equal(undetermined(F, far, coef, scale, speed), ~rows & ~bad)

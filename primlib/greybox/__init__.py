@@ -11,6 +11,7 @@ as far as a transform preserves it.
 """
 
 from primlib.greybox._features import LINEAR, NONLINEAR, POSITION, TERMS
-from primlib.greybox._fit import GreyBox, Pair, fit_greybox
+from primlib.greybox._fit import fit_greybox
+from primlib.greybox._model import GreyBox, Pair
 
 __all__ = ["GreyBox", "LINEAR", "NONLINEAR", "POSITION", "Pair", "TERMS", "fit_greybox"]

@@ -5,7 +5,7 @@ act at the input (in input units): friction, a force ripple that depends on the 
 position, a constant disturbance. The input that makes the machine follow a path y is then
 
     u = G^-1 y + c_v v + c_a a + c_l (d/dt G^-1 y)                  (linear-model error)
-          + c_c tanh(v / v_c) + c_s sgn(v) exp(-|v| / v_s)         (Coulomb, Stribeck)
+          + c_c s(v) + c_s sgn(v) exp(-|v| / v_s)     (Coulomb, Stribeck; s a sign, below)
           + c_1 sin(w x) + c_2 cos(w x)                             (ripple, x absolute)
           + c_0                                                     (constant disturbance)
 
@@ -16,16 +16,21 @@ the ripple's spatial frequency w the fit is one least-squares problem (:mod:`._f
 
 Velocity is the mean over the sample interval, ``(y[k+1] - y[k]) / dt``: the input held
 over [k, k+1] (ZOH) moves the axis against the friction of that interval, and the inverse
-``G^-1 y`` puts ``u[k]`` where ``y[k+1]`` responds to it. The Coulomb term is ``tanh`` of
-``v / v_c`` with ``v_c`` a small fraction of the axis's speed (a smooth sign: at rest the
-friction is whatever the other forces need, which no regressor can say, and a hard sign
-would put a step in the input wherever the sampled velocity changes sign). The exact mean of
-the sign over the interval, ``(v0 + v1) / (|v0| + |v1|)`` with the velocity linear between
-the samples, was tried (issue 9): it found a Coulomb force within 0.5 % where ``tanh`` needs
-a Stribeck term beside it, and the model-only input on rotated paths of the friction
-benchmark improved (median 0.018 -> 0.012 mm), but in place it got worse (0.0075 -> 0.012)
-and on the example stage's walk-through (static friction 1.5x, measurement noise) the
-rotated glyph's first trial went from 0.049 to 0.089 mm: not kept.
+``G^-1 y`` puts ``u[k]`` where ``y[k+1]`` responds to it. The Coulomb term comes in two
+shapes, chosen per axis by the fit (:mod:`._fit`):
+
+- smooth, ``tanh(v / v_c)`` with ``v_c`` 1 % of the axis's speed, the Stribeck term
+  ``sgn(v) exp(-|v| / v_s)``: what a machine whose friction rises smoothly through zero
+  velocity needs (the example stage, static friction 1.5x the Coulomb level: the moved
+  glyph 0.046 mm with it, 0.084 with the hard sign);
+- hard, ``sgn(v)`` and 0 where the axis rests (``|v|`` below :data:`~._robust.REST` of
+  its speed: rounding, not motion; at rest the friction is whatever the other forces need,
+  up to the static level, which no regressor can say), the Stribeck term likewise: what a
+  plain Coulomb machine needs once the stored rows their paths do not determine are
+  replaced (:mod:`._robust`). On issue 9's friction 2 % benchmark (scratch comparison of
+  the model-only input, 3 rotated and time-scaled paths, mm): smooth 0.018 median, 0.031
+  worst; hard with those rows kept 0.0065, 0.035; hard with them replaced 0.001-0.003, the
+  fitted Coulomb levels within 0.6 % (smooth: 5-11 % low).
 
 The ripple is likewise its mean over the interval, the motion from ``x[k]`` to ``x[k+1]``
 taken uniform: ``sin(w x)`` averages to ``sinc(w dx / 2) sin(w (x[k] + dx / 2))`` with
@@ -38,12 +43,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from primlib.greybox._robust import moving
+
 __all__ = [
     "LINEAR",
     "NONLINEAR",
     "POSITION",
     "TERMS",
     "axis_features",
+    "hard_friction",
     "ripple_columns",
     "speed_scale",
 ]
@@ -54,7 +62,7 @@ NONLINEAR = ("coulomb", "stribeck", "bias")
 POSITION = ("ripple_sin", "ripple_cos")
 TERMS = LINEAR + NONLINEAR + POSITION
 
-COULOMB_FRACTION = 0.01  # v_c: this fraction of the axis's typical speed
+COULOMB_FRACTION = 0.01  # v_c of the smooth sign: this fraction of the axis's typical speed
 STRIBECK_FRACTION = 0.1  # v_s: this fraction of the axis's typical speed
 
 
@@ -71,6 +79,7 @@ def axis_features(
     speed: float,
     position: np.ndarray | None,
     w: float,
+    hard: bool = False,
 ) -> np.ndarray:
     """Regressors of one axis, shape (n, 8) in the order of :data:`TERMS`.
 
@@ -83,12 +92,15 @@ def axis_features(
     dt : float
     speed : float
         The axis's typical speed (:func:`speed_scale` of the fitted data); sets the
-        smoothing velocities of the friction terms.
+        Stribeck velocity and what counts as rest.
     position : array, shape (n,) or None
         Absolute position of the axis (``y`` plus where the path started on the machine);
         None where unknown: the ripple columns are then zero.
     w : float
         Spatial angular frequency of the ripple (rad per user unit); 0 = no ripple.
+    hard : bool
+        The Coulomb and Stribeck columns with a hard sign, 0 at rest
+        (:func:`hard_friction`); else the smooth sign.
     """
     n = y.shape[0]
     out = np.zeros((n, len(TERMS)))
@@ -106,6 +118,18 @@ def axis_features(
     out[:, 5] = 1.0
     if position is not None and w > 0:
         out[:, 6:8] = ripple_columns(position, np.diff(position, append=position[-1]), w)
+    return hard_friction(out, speed) if hard else out
+
+
+def hard_friction(F: np.ndarray, speed: float) -> np.ndarray:
+    """``F`` (regressors of one axis, column 0 the velocity) with its Coulomb and
+    Stribeck columns in the hard shape: ``sgn(v)``, 0 where the axis rests."""
+    out = F.copy()
+    if speed > 0:
+        v = F[:, 0]
+        sign = np.where(moving(v, speed), np.sign(v), 0.0)
+        out[:, 3] = sign
+        out[:, 4] = sign * np.exp(-np.abs(v) / (STRIBECK_FRACTION * speed))
     return out
 
 

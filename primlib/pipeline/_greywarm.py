@@ -78,9 +78,15 @@ def bank_pairs(bank: Bank) -> list[Pair]:
     return out
 
 
-def linear_parts(gb: GreyBox, bank: Bank, ids, *, versions: bool = True) -> dict[int, StoredSignal]:
+def linear_parts(
+    gb: GreyBox, bank: Bank, ids, *, versions: bool = True, clean: bool = False
+) -> dict[int, StoredSignal]:
     """The stored signals of ``ids`` minus the nonlinear terms the grey-box model gives them
     (:func:`~primlib.pipeline.stored_signals` with that adjustment).
+
+    ``clean``: first replace the rows their paths do not determine as the grey-box fit did
+    (:meth:`~primlib.greybox.GreyBox.clean`) -- for fitting a model to them, not for carrying
+    them over (where the machine ran, the stored input itself is what worked).
 
     Versions at other durations (for eq. (20)) lose their own terms, evaluated on their own
     motion where they ran (a version is the same path run faster or slower).
@@ -92,6 +98,8 @@ def linear_parts(gb: GreyBox, bank: Bank, ids, *, versions: bool = True) -> dict
     def linear(i: int, signal: np.ndarray) -> np.ndarray:
         p = pts[offs[i] : offs[i + 1]]
         origin = org[i] if np.all(np.isfinite(org[i])) else None
+        if clean:
+            signal = gb.clean(signal, p - p[0])
         return signal - gb.terms(p - p[0], origin)[2]
 
     return stored_signals(bank, ids, versions=versions, adjust=linear)

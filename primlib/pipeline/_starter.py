@@ -131,8 +131,10 @@ class WarmStarter:
 
         Others are added so that an axis the matched pieces do not move (a rotation can
         move it on the new path) is refined too. With a grey-box model ``gb`` the fit sees
-        the stored inputs' linear parts (friction, ripple and bias taken out), so those do
-        not drive the linear model's gain, time constant and lag. Cached on this object.
+        the stored inputs' linear parts (friction, ripple and bias taken out, and the rows
+        their paths do not determine replaced: :meth:`~primlib.greybox.GreyBox.clean`), so
+        those do not drive the linear model's gain, time constant and lag. Cached on this
+        object.
         """
         all_ids = [int(i) for i in np.asarray(bank.ids)]
         chosen = [i for i in ids if i in all_ids]
@@ -145,7 +147,7 @@ class WarmStarter:
         if gb is None:
             stored = stored_signals(bank, chosen, versions=False)
         else:
-            stored = linear_parts(gb, bank, chosen, versions=False)
+            stored = linear_parts(gb, bank, chosen, versions=False, clean=True)
         model = refine_machine(
             machine, [(s.signal, s.points - s.points[0]) for s in stored.values()]
         )
