@@ -160,26 +160,25 @@ class QueryMoments:
         scat = qc.T @ qc
         sv = np.sqrt(np.maximum(sym_eigvals(scat[None]), 0.0))[0]
         d = qc.shape[1]
+        # each half's centroid and centred points once (the same values as taken apart)
+        m1, m2 = h1.mean(axis=0), h2.mean(axis=0)
+        c1, c2 = (h1 - m1) ** 2, (h2 - m2) ** 2
+        half = m1 - m2
         return cls(
             k=k,
             k1=k1,
             k2=k - k1,
             gyration=math.sqrt(float(np.sum(qc * qc)) / k),
-            half_distance=float(np.linalg.norm(h1.mean(axis=0) - h2.mean(axis=0))),
+            half_distance=float(np.linalg.norm(half)),
             half_gyration=(
-                math.sqrt(float(np.sum((h1 - h1.mean(axis=0)) ** 2)) / k1),
-                math.sqrt(float(np.sum((h2 - h2.mean(axis=0)) ** 2)) / (k - k1)),
+                math.sqrt(float(np.sum(c1)) / k1),
+                math.sqrt(float(np.sum(c2)) / (k - k1)),
             ),
             principal=sv,
             # closed-form eigenvalues: acos near ±1 and the rest cost at most 1e-7·trace
             principal_error=math.sqrt(d * 1e-7 * float(np.trace(scat)) / k),
-            half_vector=h1.mean(axis=0) - h2.mean(axis=0),
-            half_axis_energy=np.stack(
-                [
-                    ((h1 - h1.mean(axis=0)) ** 2).sum(axis=0),
-                    ((h2 - h2.mean(axis=0)) ** 2).sum(axis=0),
-                ]
-            ),
+            half_vector=half,
+            half_axis_energy=np.stack([c1.sum(axis=0), c2.sum(axis=0)]),
         )
 
 
