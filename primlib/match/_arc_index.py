@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 from primlib.match._bounds import (
     QueryMoments,
@@ -113,6 +114,20 @@ class ArcIndex:
         hit = self.cache.get(key)
         if hit is None:
             hit = self.cache[key] = strided_cumsum(self.levels[jb].x, dil)
+        return hit
+
+    def window_views(self, jb: int, span: int, dil: int) -> tuple[np.ndarray, np.ndarray]:
+        """Views (no copy) of level jb's windows of ``span`` points taking every ``dil``-th:
+        the points (M', d, K) and the sample indices (M', K); formed once per (level, span,
+        dilation) -- making a view costs ~40 µs, as much as scoring a few windows."""
+        key = ("w", jb, span, dil)
+        hit = self.cache.get(key)
+        if hit is None:
+            lv = self.levels[jb]
+            hit = self.cache[key] = (
+                sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil],
+                sliding_window_view(lv.x, span)[:, ::dil],
+            )
         return hit
 
     def window_deviation(self, jb: int, n_windows: int, span: int) -> np.ndarray | None:

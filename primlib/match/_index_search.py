@@ -48,7 +48,6 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
 from primlib.match._arc_index import ArcIndex, ArcQuery
 from primlib.match._bank import BankIndex
@@ -277,8 +276,9 @@ class IndexSearch:
         One matrix product for all cross-covariances of the gathered windows (m, d, k); no
         window centring is needed since Σ q̃ = 0.
         """
-        lv, k, span, dil = aq.level, aq.k, aq.span, aq.dil
-        win = sliding_window_view(lv.pts, span, axis=0)[:, :, ::dil][ws]  # a copy
+        k, span, dil = aq.k, aq.span, aq.dil
+        pts_w, x_w = aq.index.window_views(aq.jb, span, dil)
+        win = pts_w[ws]  # a copy
         d = aq.qc.shape[1]
         s_ = (win.reshape(-1, k) @ aq.qc).reshape(ws.size, d, d)
         win -= win.mean(axis=2, keepdims=True)  # centred in place, once s_ is formed
@@ -287,7 +287,7 @@ class IndexSearch:
             sp = sp.sum(axis=1)
         sq_ = np.broadcast_to(aq.sq, (ws.size, 3)) if aq.per_axis else aq.sq
         shape = rmsd_from_moments(s_, sp, sq_, k, self.opts.rotation)
-        xw = sliding_window_view(lv.x, span)[:, ::dil][ws]
+        xw = x_w[ws]
         return self._combine(aq, shape, xw), shape
 
     def score_shifted(self, aq: ArcQuery, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
