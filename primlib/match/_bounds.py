@@ -575,15 +575,17 @@ def sym_eigvals(a: np.ndarray) -> np.ndarray:
     p2 = (a[:, 0, 0] - q) ** 2 + (a[:, 1, 1] - q) ** 2 + (a[:, 2, 2] - q) ** 2 + 2.0 * p1
     p = np.sqrt(p2 / 6.0)
     safe = np.where(p > 0, p, 1.0)
-    # B = (A − q·I)/p entry by entry, 1-D arrays (no (m, 3, 3) temporaries); the off-
-    # diagonal entries a_ij − q·0 = a_ij, so every entry is the value the whole-matrix form
-    # gave up to the sign of a zero, and the determinant's products and sums are the same
-    b = [[(a[:, i, j] - q if i == j else a[:, i, j]) / safe for j in range(3)] for i in range(3)]
-    det = (
-        b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1])
-        - b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0])
-        + b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0])
-    )
+    # B = (A − q·I)/p entry by entry, as rows of one (9, m) array (no (m, 3, 3)
+    # temporaries, one division for the nine entries); the off-diagonal entries
+    # a_ij − q·0 = a_ij, so every entry is the value the whole-matrix form gave up to the
+    # sign of a zero. The determinant by its first row's cofactors, the three 2×2 minors
+    # at once: elementwise the same products and sums, in the same order, as term by term
+    b = a.reshape(-1, 9).T.copy()
+    b[[0, 4, 8]] -= q
+    b /= safe
+    minors = b[[4, 3, 3]] * b[[8, 8, 7]] - b[[5, 5, 4]] * b[[7, 6, 6]]
+    terms = b[:3] * minors
+    det = terms[0] - terms[1] + terms[2]
     phi = np.arccos(np.clip(det / 2.0, -1.0, 1.0)) / 3.0
     l1 = q + 2.0 * p * np.cos(phi)
     l3 = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
