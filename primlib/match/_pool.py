@@ -91,8 +91,6 @@ class CandidatePool:
 
     Attributes
     ----------
-    items : list of Candidate
-        The pool, best first.
     keys : array of int
         Each item's key (the search's window index).
     combined : float
@@ -106,13 +104,24 @@ class CandidatePool:
         self.cap = cap
         self.gate = gate
         self.tie_width = tie_width
-        self.items: list[Candidate] = []
+        self._items: list[Candidate] | None = []
+        self._kept: tuple = ()
         self.keys = np.zeros(0, dtype=np.int64)
         self.combined = math.inf
         self.threshold = gate
         self._cols = [np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0),
                       np.zeros(0, dtype=np.int64)]  # fmt: skip
         self._count = 0
+
+    @property
+    def items(self) -> list[Candidate]:
+        """The pool, best first (formed when asked for: a search offers several batches
+        and reads the pool once)."""
+        if self._items is None:
+            kept, pr, a, b, sc = self._kept
+            self._items = [Candidate(int(pr[i]), float(a[i]), float(b[i]), float(sc[i]))
+                           for i in kept]  # fmt: skip
+        return self._items
 
     def offer(self, cands: list[Candidate]) -> None:
         """Add scored windows (each below the gate), keyed in the order offered."""
@@ -145,7 +154,7 @@ class CandidatePool:
             tau = max(float(sc[kept[self.n_best - 1]]), tie)
         if len(kept) == self.cap:
             tau = min(tau, float(sc[kept[-1]]))
-        self.items = [Candidate(int(pr[i]), float(a[i]), float(b[i]), float(sc[i])) for i in kept]
+        self._kept, self._items = (kept, pr, a, b, sc), None  # items: formed when asked for
         self.keys = ky[kept] if kept else np.zeros(0, dtype=np.int64)
         self.combined = tau
         self.threshold = min(self.gate, tau)
