@@ -336,7 +336,7 @@ class IndexSearch:
             return []
         self.stats.queries += 1
         pool = self._best_first(aq, _Gates.of(aq, eps))
-        if not pool.items:
+        if pool.keys.size == 0:
             return []
         stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
         extra = 0.0 if stored is None else float(stored[pool.keys].max())
@@ -526,6 +526,8 @@ class IndexSearch:
         # it leaves few windows for the principal-value bound
         ok_range, x_end = self.in_range(aq, ws)
         ws, x_end, lbs, gates = ws[ok_range], x_end[ok_range], lbs[ok_range], gates[ok_range]
+        if ws.size == 0:  # nothing left to bound or score (each costs ~0.3 ms even so)
+            return
         lb2 = self.second_bound(aq, ws)
         keep = (lb2 < gates) & (np.hypot(np.maximum(lb2, 0.0), np.maximum(lbs, 0.0))
                                 < pool.combined)  # fmt: skip
