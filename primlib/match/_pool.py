@@ -31,28 +31,22 @@ def _suppressed_order(prim, x0, x1, order, m: int) -> list[int]:
     pr = np.asarray(prim)[order].tolist()
     lo_ = np.asarray(x0, dtype=float)[order].tolist()
     hi_ = np.asarray(x1, dtype=float)[order].tolist()
-    idx = order.tolist()
-    kept: dict[int, list[tuple[float, float]]] = {}
+    kept: dict[int, list[tuple[float, float, float]]] = {}  # (start, end, length)
     out: list[int] = []
-    for i, p in enumerate(pr):
-        lo, hi = lo_[i], hi_[i]
+    for j, p, lo, hi in zip(order.tolist(), pr, lo_, hi_, strict=True):
+        w = hi - lo
         same = kept.get(p)
         if same is None:
-            kept[p] = [(lo, hi)]
-        else:
-            w = hi - lo
-            hit = False
-            for o0, o1 in same:
-                ov = (o1 if o1 < hi else hi) - (o0 if o0 > lo else lo)
-                if ov > 0.5 * (w if w < o1 - o0 else o1 - o0):
-                    hit = True
-                    break
-            if hit:
-                continue
-            same.append((lo, hi))
-        out.append(idx[i])
-        if len(out) == m:
-            break
+            same = kept[p] = []
+        for o0, o1, ow in same:
+            ov = (o1 if o1 < hi else hi) - (o0 if o0 > lo else lo)
+            if ov > 0.5 * (w if w < ow else ow):
+                break
+        else:  # no kept piece of the same primitive overlaps it that much
+            same.append((lo, hi, w))
+            out.append(j)
+            if len(out) == m:
+                break
     return out
 
 
