@@ -550,14 +550,13 @@ class IndexSearch:
         best = np.argmin(r, axis=1)
         g0 = aq.level.garc[pool.keys] + _SHIFTS[best] * aq.level.step
         x_end = aq.index.arc_to_sample(g0 + aq.ell, aq.level.prim[pool.keys])
-        kept = suppress(
-            [
-                Candidate(c.prim, float(x0[i, best[i]]), float(x_end[i]), float(r[i, best[i]]))
-                for i, c in enumerate(pool.items)
-                if np.isfinite(r[i, best[i]])
-            ],
-            self.pool_cap,
-        )
+        rows = np.arange(base.size)
+        rb, xb = r[rows, best], x0[rows, best]
+        live = np.flatnonzero(np.isfinite(rb)).tolist()  # one array op each, not per item
+        rb, xb, xe = rb.tolist(), xb.tolist(), x_end.tolist()
+        items = pool.items
+        kept = suppress([Candidate(items[i].prim, xb[i], xe[i], rb[i]) for i in live],
+                        self.pool_cap)  # fmt: skip
         # a stored copy now starts within an eighth of a base step of a shift: it scores
         # below √2·(3·eps + Δ_b/8); every window within that of the best may be it
         width = math.sqrt(2.0) * (3.0 * eps + 0.125 * aq.level.step)
