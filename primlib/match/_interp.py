@@ -88,7 +88,7 @@ def cubic_rows(points: np.ndarray, start: np.ndarray, last: np.ndarray, x: np.nd
     i1 += (d * (i + 2 <= last))[:, None, :]
     p3 = flat.take(i1)
     # coefficients()'s operations in their order (the same numbers to the last bit), in
-    # place: fewer temporaries, and the factors 0.5·f and 3·f formed once on (m, 1, k)
+    # place: fewer temporaries
     c1 = p2 - p0
     c2 = 2.0 * p0
     c2 -= 5.0 * p1
@@ -98,18 +98,25 @@ def cubic_rows(points: np.ndarray, start: np.ndarray, last: np.ndarray, x: np.nd
     c3 *= 3.0
     c3 += p3
     c3 -= p0  # 3 (p1 − p2) + p3 − p0
+    return _horner(p1, c1, c2, c3, f)
+
+
+def _horner(p1, c1, c2, c3, f):
+    """Value and d/dx from the coefficients at the fractions ``f``, in place on c2 and c3
+    (they are spent): ``p1 + 0.5 f (c1 + f (c2 + f c3))`` and
+    ``0.5 (c1 + f (2 c2 + 3 f c3))``, the factors 0.5·f and 3·f formed once on f's shape."""
     val = f * c3
     val += c2
     val *= f
     val += c1
     val *= 0.5 * f
-    val += p1  # p1 + 0.5 f (c1 + f (c2 + f c3))
+    val += p1
     c3 *= 3.0 * f
     c2 *= 2.0
     c2 += c3
     c2 *= f
     c2 += c1
-    c2 *= 0.5  # 0.5 (c1 + f (2 c2 + 3 f c3))
+    c2 *= 0.5
     return val, c2
 
 
@@ -148,16 +155,8 @@ class CurveTable:
                 # interval i's neighbours clamped at the ends, as cubic_rows takes them
                 p0, p1 = np.concatenate([q[:1], q[:-2]]), q[:-1]
                 p2, p3 = q[1:], np.concatenate([q[2:], q[-1:]])
-                c2 = 2.0 * p0
-                c2 -= 5.0 * p1
-                c2 += 4.0 * p2
-                c2 -= p3
-                c3 = p1 - p2
-                c3 *= 3.0
-                c3 += p3
-                c3 -= p0
                 r0 = int(self.first[c]) * d
-                for out, v in zip(self.flat, (p1, p2 - p0, c2, c3), strict=True):
+                for out, v in zip(self.flat, (p1, *coefficients(p0, p1, p2, p3)), strict=True):
                     out[r0 : r0 + v.size] = v.ravel()
             self.done[c] = True
 
@@ -172,17 +171,4 @@ class CurveTable:
         i = np.minimum(x.astype(np.int64), last - 1)  # floor: x >= 0
         f = (x - i)[:, None, :]
         at = ((self.first[curve][:, None] + i) * d)[:, None, :] + np.arange(d)[:, None]
-        p1, c1, c2, c3 = (t.take(at) for t in self.flat)
-        val = f * c3  # cubic_rows' Horner steps in their order
-        val += c2
-        val *= f
-        val += c1
-        val *= 0.5 * f
-        val += p1
-        c3 *= 3.0 * f
-        c2 *= 2.0
-        c2 += c3
-        c2 *= f
-        c2 += c1
-        c2 *= 0.5
-        return val, c2
+        return _horner(*(t.take(at) for t in self.flat), f)
