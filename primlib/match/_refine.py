@@ -23,6 +23,7 @@ __all__ = [
     "solve_box_qp2",
     "rotation_coupling",
     "hopeless",
+    "slack_tolerance",
 ]
 
 # A z <= c for z = (x0, x1): x0 >= 0, x1 <= n − 1, x1 − x0 >= lo, x1 − x0 <= hi
@@ -31,6 +32,12 @@ _BUDGET = 60  # evaluations per refinement
 # converged: a step moved less than this (samples) or gained less than this of the cost
 _MOVED = 1e-4
 _GAIN = 1e-8
+
+
+def slack_tolerance(c: np.ndarray) -> np.ndarray:
+    """How far past the constraints ``A z <= c`` a step may land and count as feasible:
+    1e-9 (1 + |c|), for the one-seed and the many-seed solvers alike."""
+    return 1e-9 * (1.0 + np.abs(c))
 
 
 def prim_at(bank: BankIndex, i: int, x: np.ndarray) -> np.ndarray:
@@ -105,7 +112,7 @@ def solve_box_qp2(h: np.ndarray, g: np.ndarray, z: np.ndarray, a: np.ndarray, b:
     line, or a vertex of two: try them all and keep the best feasible one.
     """
     slack = b - a @ z
-    tol = 1e-9 * (1.0 + np.abs(b))
+    tol = slack_tolerance(b)
     free = np.linalg.solve(h, g)
     if np.all(a @ free <= slack + tol):
         return free  # the usual case: no constraint active

@@ -17,7 +17,15 @@ import numpy as np
 from primlib.match._interp import CurveTable, cubic_rows
 from primlib.match._kabsch import _rotation_2d
 from primlib.match._options import Candidate, PathPiece, SearchOptions
-from primlib.match._refine import _AMAT, _BUDGET, _GAIN, _MOVED, clamp_many, hopeless
+from primlib.match._refine import (
+    _AMAT,
+    _BUDGET,
+    _GAIN,
+    _MOVED,
+    clamp_many,
+    hopeless,
+    slack_tolerance,
+)
 
 if TYPE_CHECKING:
     from primlib.match._bank import BankIndex
@@ -183,13 +191,13 @@ def _times_a(z: np.ndarray) -> np.ndarray:
 def _steps(jtj, g, lam, z, cvec, tol=None):
     """Damped Gauss–Newton steps under A z ≤ c: the free 2×2 solution where feasible, the
     box QP of :func:`._refine.solve_box_qp2` elsewhere (in closed form for a fixed
-    duration). ``tol``: the constraints' tolerance 1e-9·(1 + |c|), if the caller keeps it."""
+    duration). ``tol``: :func:`._refine.slack_tolerance` of ``cvec``, if the caller keeps it."""
     dg = np.diagonal(jtj, axis1=1, axis2=2)
     h = jtj + ((lam + 1e-12)[:, None] * (dg + 1e-12))[:, :, None] * _EYE2
     det = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
     free = _free_step(h, g, det)
     slack = cvec - _times_a(z)
-    tol = 1e-9 * (1.0 + np.abs(cvec)) if tol is None else tol
+    tol = slack_tolerance(cvec) if tol is None else tol
     ok = (_times_a(free) <= slack + tol).all(axis=1) & (det > 0)
     if ok.all():
         return free  # the usual case: every free step is feasible
@@ -326,7 +334,7 @@ class _Running:
         every = rows.size == run.size
         st.z, st.cost = (z.copy(), cost.copy()) if every else (z[rows], cost[rows])
         st.cvec = cvec if every else cvec[rows]
-        st.tol = 1e-9 * (1.0 + np.abs(st.cvec))  # the constraints' tolerance (_steps)
+        st.tol = slack_tolerance(st.cvec)  # kept for _steps
         st.lam, st.budget = np.zeros(rows.size), np.full(rows.size, _BUDGET)
         st.gain, st.previous = np.zeros(rows.size), np.zeros(rows.size)
         return st
