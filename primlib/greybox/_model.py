@@ -140,18 +140,25 @@ class GreyBox:
             non[:, i] = F[:, NONLIN] @ self.coef[i, NONLIN]
         return u_lin, lin, non
 
-    def clean(self, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+    def clean(self, u: np.ndarray, y: np.ndarray, u_lin: np.ndarray | None = None) -> np.ndarray:
         """The stored input ``u`` of the path ``y`` (relative, shape (n, d)) with the rows
         the path does not determine replaced as the fit replaced them (:mod:`._robust`):
-        what a linear model is fitted to beside this one."""
+        what a linear model is fitted to beside this one. ``u_lin``: the linear model's
+        inverse of ``y``, as :meth:`terms` takes it."""
         u = np.array(u, dtype=float)
         if self.robust_coef is None:
             return u
+        axes = [
+            i
+            for i in range(self.machine.dim)
+            if self.speed[i] > 0 and np.all(np.isfinite(self.robust_coef[i]))
+        ]
+        if not axes:  # no axis was cleaned (no friction found): nothing to replace
+            return u
         y = np.asarray(y, dtype=float)
-        u_lin = model_inverse(self.machine, y)
-        for i in range(self.machine.dim):
-            if self.speed[i] <= 0 or not np.all(np.isfinite(self.robust_coef[i])):
-                continue
+        if u_lin is None:
+            u_lin = model_inverse(self.machine, y)
+        for i in axes:
             dt, v = self.machine.dt, self.speed[i]
             F = axis_features(y[:, i], u_lin[:, i], dt, v, None, 0.0, hard=True)
             fit = (self.robust_coef[i], float(self.robust_scale[i]))

@@ -98,9 +98,10 @@ def linear_parts(
     def linear(i: int, signal: np.ndarray) -> np.ndarray:
         p = pts[offs[i] : offs[i + 1]]
         origin = org[i] if np.all(np.isfinite(org[i])) else None
+        u_lin, _, non = gb.terms(p - p[0], origin)
         if clean:
-            signal = gb.clean(signal, p - p[0])
-        return signal - gb.terms(p - p[0], origin)[2]
+            signal = gb.clean(signal, p - p[0], u_lin)
+        return signal - non
 
     return stored_signals(bank, ids, versions=versions, adjust=linear)
 
