@@ -6,7 +6,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from primlib.match._options import Candidate
-from primlib.match._pool import CandidatePool, best_and_ties, suppress
+from primlib.match._pool import CandidatePool, _suppressed_order, best_and_ties, suppress
 
 
 def test_suppress_keeps_one_candidate_per_basin_best_first():
@@ -61,3 +61,43 @@ def test_threshold_is_the_worst_kept_score_once_the_pool_is_full():
     pool.offer([Candidate(i, 0.0, 1.0, s) for i, s in enumerate([0.4, 0.1, 0.3])])
     assert [c.score for c in pool.items] == [0.1, 0.3]  # 0.4: not in the best 2, no tie
     assert pool.threshold == 0.3
+
+
+def _plain_suppression(prim, x0, x1, order, m):
+    """Greedy suppression as first written: every kept piece of the primitive compared."""
+    kept, out = {}, []
+    for j in order:
+        lo, hi = float(x0[j]), float(x1[j])
+        w = hi - lo
+        same = kept.setdefault(int(prim[j]), [])
+        for o0, o1, ow in same:
+            ov = (o1 if o1 < hi else hi) - (o0 if o0 > lo else lo)
+            if ov > 0.5 * (w if w < ow else ow):
+                break
+        else:
+            same.append((lo, hi, w))
+            out.append(int(j))
+            if len(out) == m:
+                break
+    return out
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 150), m=st.integers(1, 60),
+       odd=st.booleans(), grid=st.booleans())  # fmt: skip
+def test_suppression_compares_only_near_pieces_and_keeps_the_same(seed, n, m, odd, grid):
+    # the kept pieces read by start (_Kept) decide exactly as comparing every kept one:
+    # pieces on a grid (equal starts and ends), of equal lengths, of zero, negative or nan
+    # length (odd)
+    rng = np.random.default_rng(seed)
+    prim = rng.integers(0, 4, size=n)
+    x0 = rng.uniform(0, 60, size=n)
+    w = rng.choice([0.0, 2.0, 4.0, 5.0], size=n) if grid else rng.uniform(0, 20, size=n)
+    if grid:
+        x0 = np.round(x0)
+    if odd:
+        w[rng.random(n) < 0.1] *= -1.0
+        w[rng.random(n) < 0.05] = np.nan
+    order = rng.permutation(n)
+    got = _suppressed_order(prim, x0, x0 + w, order, m)
+    assert got == _plain_suppression(prim, x0, x0 + w, order, m)

@@ -13,6 +13,7 @@ gate), and the pool is then exactly what scoring every window would give.
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 
 import numpy as np
 
@@ -25,29 +26,82 @@ def _suppressed_order(prim, x0, x1, order, m: int) -> list[int]:
     """Positions (in ``order``, best first) that greedy suppression keeps; at most m.
 
     A piece is dropped when it overlaps a kept piece of the same primitive by more than half
-    the shorter. Plain Python on lists (numpy scalars cost ~10x more per item here).
+    the shorter. Plain Python on lists (numpy scalars cost ~10x more per item here); each
+    piece is compared only with the kept pieces that can overlap it (:class:`_Kept`), not
+    with every kept piece of its primitive: the same comparisons decide, so the same
+    pieces are kept.
     """
     order = np.asarray(order, dtype=np.int64)
     pr = np.asarray(prim)[order].tolist()
     lo_ = np.asarray(x0, dtype=float)[order].tolist()
     hi_ = np.asarray(x1, dtype=float)[order].tolist()
-    kept: dict[int, list[tuple[float, float, float]]] = {}  # (start, end, length)
+    kept: dict[int, _Kept] = {}
     out: list[int] = []
     for j, p, lo, hi in zip(order.tolist(), pr, lo_, hi_, strict=True):
-        w = hi - lo
         same = kept.get(p)
         if same is None:
-            same = kept[p] = []
-        for o0, o1, ow in same:
-            ov = (o1 if o1 < hi else hi) - (o0 if o0 > lo else lo)
-            if ov > 0.5 * (w if w < ow else ow):
-                break
-        else:  # no kept piece of the same primitive overlaps it that much
-            same.append((lo, hi, w))
+            same = kept[p] = _Kept()
+        if same.admits(lo, hi):
             out.append(j)
             if len(out) == m:
                 break
     return out
+
+
+class _Kept:
+    """The kept pieces of one primitive, sorted by start, for :func:`_suppressed_order`.
+
+    A piece [o0, o1] of length ow = o1 − o0 suppresses [lo, hi] (length w) when
+    min(o1, hi) − max(o0, lo) > 0.5·min(w, ow). Where both lengths are >= 0 that needs the
+    two to intersect (o0 < hi and o1 > lo: otherwise the overlap is <= 0, exactly, in
+    floating point too), so only the kept pieces starting before hi are read, from the
+    latest start down, until a start lies more than the longest kept length (plus a
+    round-off margin) before lo: every earlier one ends before lo. Pieces of negative
+    length (not formed by the search, but allowed) are compared with every kept piece, and
+    every kept one of negative length with every piece, as before.
+    """
+
+    __slots__ = ("starts", "pieces", "widest", "odd")
+
+    def __init__(self) -> None:
+        self.starts: list[float] = []
+        self.pieces: list[tuple[float, float, float]] = []  # (start, end, length)
+        self.widest = 0.0
+        self.odd: list[tuple[float, float, float]] = []  # those of negative length
+
+    def admits(self, lo: float, hi: float) -> bool:
+        """Whether no kept piece suppresses [lo, hi]; if so it is kept."""
+        w = hi - lo
+        if w < 0 or w != w:
+            near = self.pieces
+        else:
+            near = self._near(lo, hi)
+        for group in (near, self.odd):
+            for o0, o1, ow in group:
+                ov = (o1 if o1 < hi else hi) - (o0 if o0 > lo else lo)
+                if ov > 0.5 * (w if w < ow else ow):
+                    return False
+        if w >= 0:
+            at = bisect_left(self.starts, lo)
+            self.starts.insert(at, lo)
+            self.pieces.insert(at, (lo, hi, w))
+            if w > self.widest:
+                self.widest = w
+        else:
+            self.odd.append((lo, hi, w))
+        return True
+
+    def _near(self, lo: float, hi: float) -> list[tuple[float, float, float]]:
+        """The kept pieces (length >= 0) that can intersect [lo, hi]: starting before hi,
+        and not more than the longest length before lo (a start o0 below that has
+        o1 <= o0 + widest·(1 + 2u) < lo)."""
+        starts, pieces = self.starts, self.pieces
+        i = bisect_left(starts, hi)
+        stop = lo - self.widest - 1e-9 * (self.widest + abs(lo) + 1.0)
+        j = i
+        while j > 0 and starts[j - 1] >= stop:
+            j -= 1
+        return pieces[j:i]
 
 
 def suppress(cands: list[Candidate], m: int) -> list[Candidate]:
