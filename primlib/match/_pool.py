@@ -26,26 +26,41 @@ def _suppressed_order(prim, x0, x1, order, m: int) -> list[int]:
     """Positions (in ``order``, best first) that greedy suppression keeps; at most m.
 
     A piece is dropped when it overlaps a kept piece of the same primitive by more than half
-    the shorter. Plain Python on lists (numpy scalars cost ~10x more per item here); each
-    piece is compared only with the kept pieces that can overlap it (:class:`_Kept`), not
-    with every kept piece of its primitive: the same comparisons decide, so the same
-    pieces are kept.
+    the shorter (:func:`_greedy`).
     """
     order = np.asarray(order, dtype=np.int64)
     pr = np.asarray(prim)[order].tolist()
-    lo_ = np.asarray(x0, dtype=float)[order].tolist()
-    hi_ = np.asarray(x1, dtype=float)[order].tolist()
-    kept: dict[int, _Kept] = {}
-    out: list[int] = []
-    for j, p, lo, hi in zip(order.tolist(), pr, lo_, hi_, strict=True):
-        same = kept.get(p)
-        if same is None:
-            same = kept[p] = _Kept()
-        if same.admits(lo, hi):
-            out.append(j)
-            if len(out) == m:
-                break
-    return out
+    lo = np.asarray(x0, dtype=float)[order].tolist()
+    hi = np.asarray(x1, dtype=float)[order].tolist()
+    at = order.tolist()
+    return [at[i] for i in _greedy(pr, lo, hi, 0, [], m)[0]]
+
+
+def _greedy(pr: list, lo: list, hi: list, start: int, kept: list[int],
+            m: int) -> tuple[list[int], int]:  # fmt: skip
+    """Greedy suppression of the pieces [lo_i, hi_i] of primitives pr_i, taken in list
+    order (best first), resumed at ``start``: ``kept`` are the positions before it that it
+    keeps (its decisions there depend only on the pieces before them). Returns the kept
+    positions (at most m) and how many positions are decided (up to the m-th kept one).
+
+    Plain Python on lists (numpy scalars cost ~10x more per item here); each piece is
+    compared only with the kept pieces that can overlap it (:class:`_Kept`), not with every
+    kept piece of its primitive: the same comparisons decide, so the same pieces are kept.
+    """
+    boxes: dict[int, _Kept] = {}
+    for i in kept:
+        boxes.setdefault(pr[i], _Kept()).admits(lo[i], hi[i])
+    if len(kept) >= m:
+        return kept[:m], kept[m - 1] + 1
+    for i in range(start, len(pr)):
+        box = boxes.get(pr[i])
+        if box is None:
+            box = boxes[pr[i]] = _Kept()
+        if box.admits(lo[i], hi[i]):
+            kept.append(i)
+            if len(kept) == m:
+                return kept, i + 1
+    return kept, len(pr)
 
 
 class _Kept:
@@ -160,6 +175,10 @@ class CandidatePool:
         self._cols = [np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0),
                       np.zeros(0, dtype=np.int64)]  # fmt: skip
         self._count = 0
+        # the columns in order (score, then key), how many of them the suppression has
+        # decided, and which of those it keeps (before the ties are cut)
+        self._decided = 0
+        self._greedy: list[int] = []
 
     @property
     def items(self) -> list[Candidate]:
@@ -189,11 +208,22 @@ class CandidatePool:
         overlapping a kept one comes back when a better newcomer suppresses that one).
         """
         self._count += len(keys)
+        before = self._cols[0].size
         cols = [np.concatenate([c, np.asarray(v)]) for c, v in
                 zip(self._cols, (score, prim, x0, x1, keys), strict=True)]  # fmt: skip
+        order = np.lexsort((cols[4], cols[0]))
+        new = np.flatnonzero(order >= before)
+        # the kept columns are in order already: the decisions before the first newcomer
+        # (and before the last run stopped) stand, the suppression resumes there
+        start = min(int(new[0]) if new.size else order.size, self._decided)
+        if new.size:
+            cols = [c[order] for c in cols]
         sc, pr, a, b, ky = cols
-        order = np.lexsort((ky, sc))
-        kept = _suppressed_order(pr, a, b, order, self.cap)
+        before_start = [i for i in self._greedy if i < start]
+        greedy, self._decided = _greedy(pr.tolist(), a.tolist(), b.tolist(), start,
+                                        before_start, self.cap)  # fmt: skip
+        self._greedy = list(greedy)
+        kept = greedy
         if kept:
             tie = sc[kept[0]] + self.tie_width
             kept = [i for j, i in enumerate(kept) if j < self.n_best or sc[i] < tie]
@@ -206,7 +236,9 @@ class CandidatePool:
         self.keys = ky[kept] if kept else np.zeros(0, dtype=np.int64)
         self.combined = tau
         self.threshold = min(self.gate, tau)
-        if math.isfinite(tau):
-            live = sc <= tau
-            cols = [c[live] for c in cols]
+        if math.isfinite(tau):  # those above tau: the last in order
+            live = int(np.count_nonzero(sc <= tau))
+            cols = [c[:live] for c in cols]
+            self._decided = min(self._decided, live)
+            self._greedy = [i for i in self._greedy if i < live]
         self._cols = cols
