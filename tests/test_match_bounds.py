@@ -151,7 +151,8 @@ def test_prefix_sums_give_every_window_sum(dil):
     np.testing.assert_allclose(s[:3].T, wins.sum(axis=1), atol=1e-12)
     np.testing.assert_allclose(s[3], (wins**2).sum(axis=(1, 2)), atol=1e-12)
     np.testing.assert_allclose(s[4], (wins[..., 0] ** 2).sum(axis=1), atol=1e-12)  # xx
-    np.testing.assert_allclose(s[5], (wins[..., 0] * wins[..., 1]).sum(axis=1), atol=1e-12)
+    np.testing.assert_allclose(s[5], (wins[..., 1] ** 2).sum(axis=1), atol=1e-12)  # yy
+    np.testing.assert_allclose(s[7], (wins[..., 0] * wins[..., 1]).sum(axis=1), atol=1e-12)
     assert radius == pytest.approx(np.linalg.norm(pts, axis=1).max())
     assert np.all(pmax >= np.abs(psum).max(axis=1))
     # without the products: the coordinates' and |p|²'s rows alone, the same values

@@ -75,9 +75,10 @@ class ArcIndex:
         """Strided prefix sums of level jb for the windows {m + i·dil, i < n}, m = 0, 1, ...
 
         Rows: the d coordinates, |p|², then (with ``products``) the products p_a·p_b
-        (a ≤ b), so the sums, the centroid, the radius of gyration and the scatter matrix of
-        any window come from two columns: Σ_{i<n} f(p_{m+i·dil}) = P[:, m + n·dil] − P[:, m]
-        (P[:, m] sums the earlier points of m's phase m mod dil). Built once per (level,
+        (a ≤ b, the squares first), so the sums, the centroid, the radius of gyration and the
+        scatter matrix of any window come from two columns:
+        Σ_{i<n} f(p_{m+i·dil}) = P[:, m + n·dil] − P[:, m] (P[:, m] sums the earlier points
+        of m's phase m mod dil). Built once per (level,
         dilation); without ``products`` the first d + 1 rows of the full sums when those
         were built, else the d + 1 rows alone (2.5x less to build and hold: the
         rotation-invariant bound needs no more).
