@@ -275,3 +275,37 @@ def test_gathered_half_window_bound_equals_the_sliced_one(rotation):
     # the same arithmetic on the same columns; einsum may sum in another order, which the
     # cancellations of window sums amplify, but never beyond the round-off margin
     np.testing.assert_allclose(some, every[starts], rtol=0, atol=margin * np.sqrt(3))
+
+
+def _one_pass_prefix_sums(pts, dil, products):
+    """strided_prefix_sums as one pass: every row filled, then np.cumsum over all of it."""
+    m, d = pts.shape
+    pairs = [(a, a) for a in range(d)] + [(a, b) for a in range(d) for b in range(a + 1, d)]
+    pairs = pairs if products else []
+    buf = np.zeros((d + 1 + len(pairs), -(-m // dil) + 1, dil))
+    flat = buf.reshape(buf.shape[0], -1)
+    flat[:d, dil : dil + m] = pts.T
+    for i, (a, b) in enumerate(pairs):
+        flat[d + 1 + i, dil : dil + m] = flat[a, dil : dil + m] * flat[b, dil : dil + m]
+    for a in range(d):
+        flat[d, dil : dil + m] += flat[a, dil : dil + m] * flat[a, dil : dil + m]
+    radius = float(np.sqrt(flat[d].max())) if m else 0.0
+    np.cumsum(buf, axis=1, out=buf)
+    return flat, np.abs(flat).max(axis=1), radius
+
+
+@pytest.mark.parametrize("dil", [1, 2, 3])
+@pytest.mark.parametrize("m", [0, 1, 5, (1 << 14) - 2, (1 << 14) + 7, 40_000])
+def test_prefix_sums_by_spans_equal_one_pass_to_the_last_bit(dil, m):
+    # spans of columns summed in cache, two sequences at once as complex numbers: the same
+    # additions in the same order as one np.cumsum over everything (signs of zeros too)
+    rng = np.random.default_rng(m + dil)
+    pts = rng.normal(size=(m, 3)) * 10.0 ** rng.uniform(-3, 3, size=(m, 1))
+    pts[rng.random(m) < 0.05] = -0.0
+    for products in (False, True):
+        got = strided_prefix_sums(pts, dil, products)
+        want = _one_pass_prefix_sums(pts, dil, products)
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(np.signbit(got[0]), np.signbit(want[0]))
+        np.testing.assert_array_equal(got[1], want[1])
+        assert got[2] == want[2]

@@ -58,6 +58,7 @@ __all__ = [
 
 _U = 2.0**-53  # unit round-off of float64
 _BLOCK = 1 << 14  # windows per block of the half-window bound (cache-sized)
+_SPAN = 1 << 14  # columns of the prefix sums filled and summed at a time (cache-sized)
 
 
 def _pairs(d: int) -> list[tuple[int, int]]:
@@ -94,29 +95,82 @@ def strided_prefix_sums(pts: np.ndarray, dil: int,
         max |P| per row (for the round-off margins).
     radius : float
         max |p| over the points.
+
+    Filled and summed ``_SPAN`` columns at a time (in cache), the running sums carried from
+    one span to the next: the same additions in the same order as one pass.
     """
     m, d = pts.shape
     rows = -(-m // dil)
     pairs = _pairs(d) if products else []
-    buf = np.zeros((d + 1 + len(pairs), rows + 1, dil))
-    flat = buf.reshape(buf.shape[0], -1)
-    coords = flat[:d, dil : dil + m]
+    c = d + 1 + len(pairs)
+    buf = np.zeros((c, rows + 1, dil))
+    flat = buf.reshape(c, -1)
+    top = np.zeros(c)  # max |P| per row so far
+    energy_max = 0.0
+    span = max(_SPAN // dil, 1)  # rows of buf (spans of dil columns) at a time
+    scratch = np.empty(max(2, dil) * span)  # |p_a|² of a span; two rows interleaved
+    for i0 in range(0, rows + 1, span):
+        i1 = min(i0 + span, rows + 1)
+        # points a0 .. a1 - 1 fill columns a + dil of these rows (the first dil are zeros)
+        a0, a1 = max(i0 * dil - dil, 0), min(max(i1 * dil - dil, 0), m)
+        if a1 > a0:
+            energy_max = max(energy_max, _fill(flat, pts[a0:a1], a0 + dil, pairs, scratch))
+        block = buf[:, i0:i1, :]
+        if i0 > 0:  # the running sums so far, added to this block's first terms
+            block[:, 0, :] += buf[:, i0 - 1, :]
+        _running_sums(block, scratch)
+        part = flat[:, i0 * dil : i1 * dil]
+        np.maximum(top, np.maximum(part.max(axis=1), -part.min(axis=1)), out=top)
+    return flat, top, math.sqrt(energy_max) if m else 0.0
+
+
+def _fill(flat: np.ndarray, pts: np.ndarray, at: int, pairs: list[tuple[int, int]],
+          scratch: np.ndarray) -> float:  # fmt: skip
+    """Write the rows of :func:`strided_prefix_sums` of points ``pts`` (before summing)
+    into columns ``at`` on of ``flat``; the largest |p|² among them."""
+    n, d = pts.shape
+    coords = flat[:d, at : at + n]
     coords[...] = pts.T  # contiguous rows: the products below read them, not pts' columns
     for i, (a, b) in enumerate(pairs):
-        np.multiply(coords[a], coords[b], out=flat[d + 1 + i, dil : dil + m])
-    energy = flat[d, dil : dil + m]
-    if products:
+        np.multiply(coords[a], coords[b], out=flat[d + 1 + i, at : at + n])
+    energy = flat[d, at : at + n]
+    if pairs:
         for i, (a, b) in enumerate(pairs):
             if a == b:
-                energy += flat[d + 1 + i, dil : dil + m]
+                energy += flat[d + 1 + i, at : at + n]
     else:
-        sq = np.empty(m)
+        sq = scratch[:n]
         for a in range(d):  # the same sum, in the same order, as from the products' rows
             np.multiply(coords[a], coords[a], out=sq)
             energy += sq
-    radius = math.sqrt(float(flat[d].max())) if m else 0.0
-    np.cumsum(buf, axis=1, out=buf)
-    return flat, np.maximum(flat.max(axis=1), -flat.min(axis=1)), radius
+    return float(energy.max())
+
+
+def _running_sums(block: np.ndarray, scratch: np.ndarray) -> None:
+    """Running sums, in place, of every row of ``block`` (c, n, dil) along its second axis
+    (P_{i+1} = P_i + f_{i+1}, each phase of dil apart), the same sums however they are
+    laid out: two sequences at once as the real and imaginary parts of complex numbers
+    (complex addition adds the parts alone; twice the sums per step of numpy's loop, whose
+    each addition waits on the last), the dil = 2 phases as they lie, rows two by two when
+    dil = 1 (interleaved in ``scratch``, 2n values or more)."""
+    c, n, dil = block.shape
+    if dil == 2:
+        v = block.view(np.complex128)
+        np.cumsum(v, axis=1, out=v)
+        return
+    if dil != 1:
+        np.cumsum(block, axis=1, out=block)
+        return
+    pair = scratch[: 2 * n].reshape(n, 2)
+    for r in range(0, c - 1, 2):
+        pair[:, 0] = block[r, :, 0]
+        pair[:, 1] = block[r + 1, :, 0]
+        v = pair.view(np.complex128)
+        np.cumsum(v, axis=0, out=v)
+        block[r, :, 0] = pair[:, 0]
+        block[r + 1, :, 0] = pair[:, 1]
+    if c % 2:
+        np.cumsum(block[c - 1], axis=0, out=block[c - 1])
 
 
 @dataclass(frozen=True)
