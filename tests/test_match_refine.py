@@ -267,3 +267,65 @@ def test_the_curve_table_gives_cubic_rows_numbers_to_the_last_bit(seed, d):
         v0, d0 = cubic_rows(points, offsets[prim][:, None], last, x)
         np.testing.assert_array_equal(val, v0)
         np.testing.assert_array_equal(der, d0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_one_seeds_step_in_floats_is_the_arrays_step_to_the_last_bit(seed):
+    # a refinement of one seed takes its step and update in Python floats for speed (the
+    # same IEEE operations): the very numbers of _steps and hopeless, or None where the free
+    # step is infeasible (the box QP then runs on the arrays)
+    from primlib.match._refine import hopeless, slack_tolerance
+    from primlib.match._refine_many import _hopeless_one, _one_step, _steps
+
+    rng = np.random.default_rng(seed)
+    jtj, g = _quadratics(rng, 1)
+    jtj[0, 0, 1] = jtj[0, 1, 0] = jtj[0, 0, 1] * rng.choice([1.0, -1.0, 0.0])
+    z = np.array([[rng.uniform(0, 50), 0.0]])
+    z[0, 1] = z[0, 0] + rng.uniform(5, 20)
+    c = np.array([[0.0, 100.0, -rng.uniform(1, 5), rng.uniform(15, 40)]])
+    lam = np.array([rng.choice([0.0, 1e-4, rng.uniform(1e-4, 1e3)])])
+    for scale in (1e-3, 1.0, 1e3):  # small steps, and large ones that leave the box
+        one = _one_step(jtj, g * scale, lam, z, c, slack_tolerance(c))
+        many = _steps(jtj, g * scale, lam, z, c)
+        if one is not None:
+            np.testing.assert_array_equal(one, many)
+        else:  # the free step left the box: the arrays' box QP took another
+            inside = _AMAT @ many[0] <= c[0] - _AMAT @ z[0] - 1e-12
+            assert not np.all(inside) or np.all(many == 0)
+    cost, gain, previous = rng.uniform(0, 10, 3) * rng.choice([0.0, 1.0], 3)
+    for give_up in (0.5, 2.0, 20.0):
+        arrays = hopeless(np.array([cost]), np.array([gain]), np.array([previous]), give_up)
+        assert _hopeless_one(cost, gain, previous, give_up) == arrays[0]
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+def test_refining_one_seed_in_floats_gives_the_arrays_numbers(rotation, monkeypatch):
+    # the float path (_FLOAT_ROWS) of a refinement down to one running seed takes the same
+    # steps as the array path to the last bit, with or without a target, giving up or not
+    from primlib.match import _refine_many
+    from primlib.match._interp import cubic_at
+
+    bank = _bank()
+    rng = np.random.default_rng(7)
+    p = bank.points_of(1)
+    q = cubic_at(p, 0, len(p), np.linspace(60.0, 260.0, 151))
+    q = q @ Rotation.from_euler("z", 25, degrees=True).as_matrix().T + 3.0
+    t = np.linspace(0, 1, 151)[:, None]  # and a path the bank does not hold: steps rejected
+    other = np.concatenate([np.sin(2 * np.pi * (i + 1.3) * t + i) * 20 for i in range(3)], 1)
+    opts = SearchOptions(rotation=rotation, time_scale=(0.5, 2.0))
+    seeds = [Candidate(1, 60.0 + rng.uniform(-8, 8), 260.0 + rng.uniform(-8, 8), 0.0)
+             for _ in range(3)]  # fmt: skip
+    seeds += [Candidate(int(rng.integers(2)), rng.uniform(0, 150), rng.uniform(200, 399), 0.0)
+              for _ in range(4)]  # fmt: skip
+    runs = [([c], 0.0, give_up) for c in seeds for give_up in (np.inf, 0.5)]
+    runs += [(seeds[:1], 0.05, np.inf), (seeds, 0.0, np.inf), (seeds, 0.0, 0.5)]
+    for path in (PathPiece(q, 150 * DT), PathPiece(other, 150 * DT)):
+        for cands, target, give_up in runs:
+            out = []
+            for rows in (1, 0):  # 0: always the arrays
+                monkeypatch.setattr(_refine_many, "_FLOAT_ROWS", rows)
+                args = (bank, cands, path, 0.0, 1.0, opts, target, give_up)
+                out.append(_refine_many.refine_many(*args, first=target > 0, points=151))
+            assert out[0][0] == out[1][0]
+            np.testing.assert_array_equal(out[0][1], out[1][1])

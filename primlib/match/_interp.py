@@ -146,6 +146,7 @@ class CurveTable:
         self.done = np.zeros(spans.size, dtype=bool)
         self.d = self.points.shape[1]
         self.flat = [np.empty(int(spans.sum()) * self.d) for _ in range(4)]  # p1, c1, c2, c3
+        self._dims = np.arange(self.d)[:, None]
 
     def _build(self, curves: np.ndarray) -> None:
         d = self.d
@@ -163,12 +164,22 @@ class CurveTable:
     def rows(self, curve: np.ndarray, last: np.ndarray, x: np.ndarray):
         """:func:`cubic_rows` for rows of queries ``x`` (m, k) on curves ``curve`` (m,) of
         ``last`` + 1 samples (m, 1): values and d/dx, shapes (m, d, k)."""
+        return self.rows_from(self.bases(curve), last, x)
+
+    def bases(self, curve: np.ndarray) -> np.ndarray:
+        """The flat offsets of curves ``curve``'s first rows, shape (m, 1), their rows formed
+        if not yet: what :meth:`rows_from` takes (a refinement asks for the same curves at
+        every step: it finds them once)."""
         need = curve[~self.done[curve]]
         if need.size:
             self._build(np.unique(need))
+        return self.first[curve][:, None] * self.d
+
+    def rows_from(self, base: np.ndarray, last: np.ndarray, x: np.ndarray):
+        """:meth:`rows` of the curves whose :meth:`bases` are ``base`` (m, 1)."""
         d = self.d
         x = np.minimum(np.maximum(x, 0.0), last)
         i = np.minimum(x.astype(np.int64), last - 1)  # floor: x >= 0
         f = (x - i)[:, None, :]
-        at = ((self.first[curve][:, None] + i) * d)[:, None, :] + np.arange(d)[:, None]
+        at = (base + i * d)[:, None, :] + self._dims  # (first + i)·d + axis: the same integers
         return _horner(*(t.take(at) for t in self.flat), f)

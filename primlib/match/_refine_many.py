@@ -34,6 +34,9 @@ __all__ = ["refine_many"]
 
 
 _EYE2, _EYE3 = np.eye(2), np.eye(3)
+# running rows up to which a step and its update are taken in Python floats (the same IEEE
+# operations as the arrays'; 0: always the arrays, as the tests compare)
+_FLOAT_ROWS = 1
 
 
 class _Residuals:
@@ -48,6 +51,7 @@ class _Residuals:
         self.table, self.bank, self.prim, self.rotation = table, bank, prim, rotation
         self.start = bank.offsets[prim][:, None]
         self.last = bank.offsets[prim + 1][:, None] - self.start - 1
+        self.base = None if table is None else table.bases(prim)
         self.qc = q - q.mean(axis=0)
         self.qt = np.ascontiguousarray(self.qc.T)  # (d, k)
         self.s = np.linspace(0.0, 1.0, q.shape[0])
@@ -79,7 +83,7 @@ class _Residuals:
         if self.table is None:
             p, dp = cubic_rows(self.bank.points, self.start[rows], self.last[rows], x)
         else:  # the same numbers from the coefficients formed once
-            p, dp = self.table.rows(self.prim[rows], self.last[rows], x)
+            p, dp = self.table.rows_from(self.base[rows], self.last[rows], x)
         pc = p - p.sum(axis=2, keepdims=True) / p.shape[2]  # the mean, without its wrapper
         if self.rotation == "none":  # R = I: no product, and no rotation kept
             r, res = np.empty((pc.shape[0], 0, 0)), self.qt - pc
@@ -163,6 +167,31 @@ def refine_many(bank: BankIndex, cands: list[Candidate], path: PathPiece, a: flo
         out[i] = Candidate(cands[i].prim, float(zf[j, 0]), float(zf[j, 1]), cands[i].score)
     rmsd[rows] = np.sqrt(np.maximum(cost, 0.0) / k)
     return out, rmsd
+
+
+def _one_step(jtj: np.ndarray, g: np.ndarray, lam: np.ndarray, z: np.ndarray,
+              cvec: np.ndarray, tol: np.ndarray) -> np.ndarray | None:  # fmt: skip
+    """:func:`_steps` of a single row in Python floats when its free step is feasible (the
+    same operations on the same numbers: IEEE arithmetic is numpy's), else None (the box
+    QP is then :func:`_steps`'): one refinement in two runs a single seed, and the dozens
+    of numpy calls on 1-element arrays cost more than the step's arithmetic."""
+    (j00, j01), (j10, j11) = jtj[0].tolist()
+    g0, g1 = g[0].tolist()
+    z0, z1 = z[0].tolist()
+    c0, c1, c2, c3 = cvec[0].tolist()
+    t0, t1, t2, t3 = tol[0].tolist()
+    ell = lam[0].item() + 1e-12
+    x0, x1 = ell * (j00 + 1e-12), ell * (j11 + 1e-12)
+    h00, h01, h10, h11 = j00 + x0 * 1.0, j01 + x0 * 0.0, j10 + x1 * 0.0, j11 + x1 * 1.0
+    det = h00 * h11 - h01 * h10
+    if not det > 0:
+        return None
+    f0 = (h11 * g0 - h01 * g1) / det
+    f1 = (h00 * g1 - h10 * g0) / det
+    if (-f0 <= (c0 - -z0) + t0 and f1 <= (c1 - z1) + t1 and f0 - f1 <= (c2 - (z0 - z1)) + t2
+            and f1 - f0 <= (c3 - (z1 - z0)) + t3):  # fmt: skip
+        return np.array([[f0, f1]])
+    return None
 
 
 def _free_step(h: np.ndarray, g: np.ndarray, det: np.ndarray) -> np.ndarray:
@@ -266,7 +295,10 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
 
     The state is kept for the running rows only (:class:`_Running`), so a step costs no
     gathers of every row's state, and the accepted and rejected rows are updated together
-    (``np.where``: the same numbers as updating each set apart)."""
+    (``np.where``: the same numbers as updating each set apart). While one row runs (a
+    single seed, half the refinements of a segmentation), its step and update are taken in
+    Python floats (:func:`_one_step`, :meth:`_Running.advance_one`): the same IEEE
+    operations, without some eighty numpy calls on 1-element arrays per step."""
     m = z.shape[0]
     cost, res, dp, r = resid(np.arange(m), z)
     out_z, out_cost = z, cost
@@ -277,8 +309,12 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
         return out_z, out_cost
     keep = st.rows if st.rows.size < m else slice(None)
     st.jtj, st.g = resid.normal_equations(res[keep], resid.turned(dp[keep], r[keep]))
+    limits = (rtol, stop, give_up)
     while True:
-        step = _steps(st.jtj, st.g, st.lam, st.z, st.cvec, st.tol)
+        one = st.rows.size <= _FLOAT_ROWS  # one seed running: its step and update in floats
+        step = _one_step(st.jtj, st.g, st.lam, st.z, st.cvec, st.tol) if one else None
+        if step is None:
+            step = _steps(st.jtj, st.g, st.lam, st.z, st.cvec, st.tol)
         still = np.any(step != 0.0, axis=1)
         if not still.all():
             step = st.drop(still, out_z, out_cost, step)
@@ -286,32 +322,18 @@ def _lockstep(resid: _Residuals, z: np.ndarray, cvec: np.ndarray, stop: float, g
                 break
         nz = st.z + step
         ncost, nres, ndp, nr = resid(st.rows, nz)
-        st.budget -= 1
-        better = ncost < st.cost
-        moved = np.abs(step).sum(axis=1)
-        gain = np.where(better, st.cost - ncost, st.gain)
-        previous = np.where(better, st.gain, st.previous)
-        st.z = np.where(better[:, None], nz, st.z)
-        cost = np.where(better, ncost, st.cost)
-        st.lam = np.where(better, np.where(st.lam > 1e-6, st.lam / 10.0, 0.0),
-                          np.maximum(st.lam * 10.0, 1e-4))  # fmt: skip
-        done = (moved < _MOVED) | (gain < rtol * cost) | (cost < stop)
-        done |= hopeless(cost, gain, previous, give_up)
-        ends = np.where(better, done, st.lam > 1e8) | (st.budget <= 0)
-        st.cost, st.gain, st.previous = cost, gain, previous
-        hit = first and bool(np.any(ncost[better] < stop))
-        on = better & ~ends
+        on, ends, hit = (st.advance_one if one else st.advance)(step, nz, ncost, limits, first)
         if np.any(on) and not hit:
-            if on.all():
+            if np.all(on):
                 st.jtj, st.g = resid.normal_equations(nres, resid.turned(ndp, nr))
             else:
                 st.jtj[on], st.g[on] = resid.normal_equations(
                     nres[on], resid.turned(ndp[on], nr[on])
                 )
-        if hit or ends.all():
-            st.drop(np.zeros(ends.shape, bool), out_z, out_cost)
+        if hit or np.all(ends):
+            st.drop(np.zeros(st.rows.size, bool), out_z, out_cost)
             break
-        if ends.any():
+        if np.any(ends):
             st.drop(~ends, out_z, out_cost)
     return out_z, out_cost
 
@@ -339,6 +361,49 @@ class _Running:
         st.gain, st.previous = np.zeros(rows.size), np.zeros(rows.size)
         return st
 
+    def advance(self, step, nz, ncost, limits, first):
+        """:func:`_lockstep`'s update after a step of the running rows (z ``nz`` at cost
+        ``ncost``): the rows whose step was accepted and that go on, those that end, and
+        whether one hit the target (with ``first``)."""
+        rtol, stop, give_up = limits
+        self.budget -= 1
+        better = ncost < self.cost
+        moved = np.abs(step).sum(axis=1)
+        gain = np.where(better, self.cost - ncost, self.gain)
+        previous = np.where(better, self.gain, self.previous)
+        self.z = np.where(better[:, None], nz, self.z)
+        cost = np.where(better, ncost, self.cost)
+        self.lam = np.where(better, np.where(self.lam > 1e-6, self.lam / 10.0, 0.0),
+                            np.maximum(self.lam * 10.0, 1e-4))  # fmt: skip
+        done = (moved < _MOVED) | (gain < rtol * cost) | (cost < stop)
+        done |= hopeless(cost, gain, previous, give_up)
+        ends = np.where(better, done, self.lam > 1e8) | (self.budget <= 0)
+        self.cost, self.gain, self.previous = cost, gain, previous
+        hit = first and bool(np.any(ncost[better] < stop))
+        return better & ~ends, ends, hit
+
+    def advance_one(self, step, nz, ncost, limits, first) -> tuple[bool, bool, bool]:
+        """:func:`_lockstep`'s update after a step of its one running row, in Python floats
+        (the same comparisons and IEEE operations as its arrays'): whether the step was
+        accepted and the row goes on, whether it ends, and whether it hit the target."""
+        rtol, stop, give_up = limits
+        c_new, c_old = ncost.item(), self.cost.item()
+        lam, gain, previous = self.lam.item(), self.gain.item(), self.previous.item()
+        self.budget -= 1
+        s0, s1 = step[0].tolist()
+        if not c_new < c_old:  # rejected: more damping
+            lam = max(lam * 10.0, 1e-4)
+            self.lam = np.array([lam])
+            return False, lam > 1e8 or self.budget.item() <= 0, False
+        gain, previous = c_old - c_new, gain
+        self.z, self.cost = nz, ncost
+        self.gain, self.previous = np.array([gain]), np.array([previous])
+        self.lam = np.array([lam / 10.0 if lam > 1e-6 else 0.0])
+        done = abs(s0) + abs(s1) < _MOVED or gain < rtol * c_new or c_new < stop
+        done = done or _hopeless_one(c_new, gain, previous, give_up)
+        ends = done or self.budget.item() <= 0
+        return not ends, ends, first and c_new < stop
+
     def drop(self, keep, out_z, out_cost, *more):
         """Write the rows not in ``keep`` out; keep the others (and ``more``'s rows)."""
         gone = ~keep
@@ -347,3 +412,10 @@ class _Running:
         for name in self.__slots__:
             setattr(self, name, getattr(self, name)[keep])
         return more[0][keep] if more else None
+
+
+def _hopeless_one(cost: float, gain: float, previous: float, give_up: float) -> bool:
+    """:func:`._refine.hopeless` of one row in Python floats (the same operations)."""
+    rho = gain / (previous if previous > 0 else np.inf)
+    tail = 10.0 * gain * rho / (1.0 - rho if rho < 1.0 else 1.0)
+    return cost > 1.21 * give_up and rho < 1.0 and previous > 0 and cost - tail > give_up
