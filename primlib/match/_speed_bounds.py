@@ -107,7 +107,7 @@ def speed_bound(
     dur = col(x, (k - 1) * dil) - x0
     moving = dur > 1e-9
     inv = np.divide(1.0, dur, out=np.ones(n), where=moving)
-    acc = np.zeros(n)
+    acc = None  # the first group's term is the sum so far (0 + t = t for t >= 0)
     for s, e, mu in speed_groups(tau_q, parts) if groups is None else groups:
         g = col(csum_, e * dil) - col(csum_, s * dil)
         g *= 1.0 / (e - s)
@@ -116,7 +116,10 @@ def speed_bound(
         g -= mu
         g *= g
         g *= (e - s) / k
-        acc += g
+        if acc is None:
+            acc = g
+        else:
+            acc += g
     lb = np.sqrt(acc, out=acc)
     # round-off: a group sum errs by <= (|G| + 2)·u·max|C|, its mean by <= 3·u·max|C|, the
     # rest by a few u·max|x|; divided by the duration, doubled for the products
@@ -157,15 +160,20 @@ def speed_screen(
     x0 = col(x, 0)
     xe = col(x, (k - 1) * dil)
     dur = xe - x0
-    acc = np.zeros(n)
+    # each step as written, the products into one spare buffer; the first group's term is
+    # the sum so far (0 + t = t for a t >= 0, which a square times (e − s)/k is)
+    acc, tmp = None, np.empty(n)
     for s, e, mu in speed_groups(tau_q, parts) if groups is None else groups:
         h = col(csum_, e * dil) - col(csum_, s * dil)
         h *= 1.0 / (e - s)
-        h -= x0 * (1.0 - mu)
-        h -= xe * mu
+        h -= np.multiply(x0, 1.0 - mu, out=tmp)
+        h -= np.multiply(xe, mu, out=tmp)
         h *= h
         h *= (e - s) / k
-        acc += h
+        if acc is None:
+            acc = h
+        else:
+            acc += h
     rhs = dur * (limit / ell + 16.0 * _U + 1e-12)
     rhs += 2.0 * (3.0 * cmax + 8.0 * xmax) * _U
     rhs *= rhs
