@@ -29,94 +29,98 @@ def _suppressed_order(prim, x0, x1, order, m: int) -> list[int]:
     the shorter (:func:`_greedy`).
     """
     order = np.asarray(order, dtype=np.int64)
-    pr = np.asarray(prim)[order].tolist()
-    lo = np.asarray(x0, dtype=float)[order].tolist()
-    hi = np.asarray(x1, dtype=float)[order].tolist()
-    at = order.tolist()
-    return [at[i] for i in _greedy(pr, lo, hi, 0, [], m)[0]]
+    lo_, hi_ = np.asarray(x0, dtype=float)[order], np.asarray(x1, dtype=float)[order]
+    pr, lo, hi, at = np.asarray(prim)[order].tolist(), lo_.tolist(), hi_.tolist(), order.tolist()
+    return [at[i] for i in _greedy(pr, lo, hi, 0, [], m, _ordinary(lo_, hi_))[0]]
 
 
-def _greedy(pr: list, lo: list, hi: list, start: int, kept: list[int],
-            m: int) -> tuple[list[int], int]:  # fmt: skip
+def _ordinary(lo: np.ndarray, hi: np.ndarray) -> bool:
+    """Whether every piece's length hi − lo is >= 0 (the search forms no other; a nan is
+    not): :func:`_greedy` may then compare a piece with the kept pieces near it alone."""
+    return bool(np.all(hi - lo >= 0))
+
+
+def _greedy(pr: list, lo: list, hi: list, start: int, kept: list[int], m: int,
+            ordinary: bool) -> tuple[list[int], int]:  # fmt: skip
     """Greedy suppression of the pieces [lo_i, hi_i] of primitives pr_i, taken in list
     order (best first), resumed at ``start``: ``kept`` are the positions before it that it
     keeps (its decisions there depend only on the pieces before them). Returns the kept
     positions (at most m) and how many positions are decided (up to the m-th kept one).
 
-    Plain Python on lists (numpy scalars cost ~10x more per item here); each piece is
-    compared only with the kept pieces that can overlap it (:class:`_Kept`), not with every
-    kept piece of its primitive: the same comparisons decide, so the same pieces are kept.
+    Plain Python on lists (numpy scalars cost ~10x more per item here). A kept piece
+    [o0, o1] of length ow suppresses [lo, hi] (length w) when min(o1, hi) − max(o0, lo) >
+    0.5·min(w, ow). With every length >= 0 (``ordinary``) that needs the two to intersect
+    (o0 < hi and o1 > lo; otherwise the overlap is <= 0, exactly, in floating point too),
+    so a piece is compared only with the kept pieces of its primitive starting before hi
+    (sorted by start), from the latest down, until a start lies more than the longest kept
+    length (plus a round-off margin: o1 <= o0 + ow·(1 + 2u)) before lo: every earlier one
+    ends before lo. The same comparisons decide, so the same pieces are kept; otherwise
+    every kept piece of the primitive is compared.
     """
-    boxes: dict[int, _Kept] = {}
+    if not ordinary:
+        return _greedy_plain(pr, lo, hi, start, kept, m)
+    boxes: dict[int, list] = {}  # primitive -> [kept starts (sorted), pieces, longest length]
     for i in kept:
-        boxes.setdefault(pr[i], _Kept()).admits(lo[i], hi[i])
+        p, a, b = pr[i], lo[i], hi[i]
+        box = boxes.setdefault(p, [[], [], 0.0])
+        at = bisect_left(box[0], a)
+        box[0].insert(at, a)
+        box[1].insert(at, (a, b, b - a))
+        box[2] = max(box[2], b - a)
     if len(kept) >= m:
         return kept[:m], kept[m - 1] + 1
     for i in range(start, len(pr)):
-        box = boxes.get(pr[i])
+        p, a, b = pr[i], lo[i], hi[i]
+        w = b - a
+        box = boxes.get(p)
         if box is None:
-            box = boxes[pr[i]] = _Kept()
-        if box.admits(lo[i], hi[i]):
+            boxes[p] = [[a], [(a, b, w)], w]
+        else:
+            starts, pieces, widest = box
+            stop = a - widest - 1e-9 * (widest + abs(a) + 1.0)
+            suppressed, j = False, bisect_left(starts, b)
+            while j:
+                j -= 1
+                o0, o1, ow = pieces[j]
+                if o0 < stop:
+                    break
+                if (o1 if o1 < b else b) - (o0 if o0 > a else a) > 0.5 * (w if w < ow else ow):
+                    suppressed = True
+                    break
+            if suppressed:
+                continue
+            at = bisect_left(starts, a)
+            starts.insert(at, a)
+            pieces.insert(at, (a, b, w))
+            if w > widest:
+                box[2] = w
+        kept.append(i)
+        if len(kept) == m:
+            return kept, i + 1
+    return kept, len(pr)
+
+
+def _greedy_plain(pr: list, lo: list, hi: list, start: int, kept: list[int],
+                  m: int) -> tuple[list[int], int]:  # fmt: skip
+    """:func:`_greedy` comparing each piece with every kept piece of its primitive."""
+    boxes: dict[int, list[tuple[float, float, float]]] = {}
+    for i in kept:
+        boxes.setdefault(pr[i], []).append((lo[i], hi[i], hi[i] - lo[i]))
+    if len(kept) >= m:
+        return kept[:m], kept[m - 1] + 1
+    for i in range(start, len(pr)):
+        a, b = lo[i], hi[i]
+        w = b - a
+        same = boxes.setdefault(pr[i], [])
+        for o0, o1, ow in same:
+            if (o1 if o1 < b else b) - (o0 if o0 > a else a) > 0.5 * (w if w < ow else ow):
+                break
+        else:
+            same.append((a, b, w))
             kept.append(i)
             if len(kept) == m:
                 return kept, i + 1
     return kept, len(pr)
-
-
-class _Kept:
-    """The kept pieces of one primitive, sorted by start, for :func:`_suppressed_order`.
-
-    A piece [o0, o1] of length ow = o1 − o0 suppresses [lo, hi] (length w) when
-    min(o1, hi) − max(o0, lo) > 0.5·min(w, ow). Where both lengths are >= 0 that needs the
-    two to intersect (o0 < hi and o1 > lo: otherwise the overlap is <= 0, exactly, in
-    floating point too), so only the kept pieces starting before hi are read, from the
-    latest start down, until a start lies more than the longest kept length (plus a
-    round-off margin) before lo: every earlier one ends before lo. Pieces of negative
-    length (not formed by the search, but allowed) are compared with every kept piece, and
-    every kept one of negative length with every piece, as before.
-    """
-
-    __slots__ = ("starts", "pieces", "widest", "odd")
-
-    def __init__(self) -> None:
-        self.starts: list[float] = []
-        self.pieces: list[tuple[float, float, float]] = []  # (start, end, length)
-        self.widest = 0.0
-        self.odd: list[tuple[float, float, float]] = []  # those of negative length
-
-    def admits(self, lo: float, hi: float) -> bool:
-        """Whether no kept piece suppresses [lo, hi]; if so it is kept."""
-        w = hi - lo
-        if w < 0 or w != w:
-            near = self.pieces
-        else:
-            near = self._near(lo, hi)
-        for group in (near, self.odd):
-            for o0, o1, ow in group:
-                ov = (o1 if o1 < hi else hi) - (o0 if o0 > lo else lo)
-                if ov > 0.5 * (w if w < ow else ow):
-                    return False
-        if w >= 0:
-            at = bisect_left(self.starts, lo)
-            self.starts.insert(at, lo)
-            self.pieces.insert(at, (lo, hi, w))
-            if w > self.widest:
-                self.widest = w
-        else:
-            self.odd.append((lo, hi, w))
-        return True
-
-    def _near(self, lo: float, hi: float) -> list[tuple[float, float, float]]:
-        """The kept pieces (length >= 0) that can intersect [lo, hi]: starting before hi,
-        and not more than the longest length before lo (a start o0 below that has
-        o1 <= o0 + widest·(1 + 2u) < lo)."""
-        starts, pieces = self.starts, self.pieces
-        i = bisect_left(starts, hi)
-        stop = lo - self.widest - 1e-9 * (self.widest + abs(lo) + 1.0)
-        j = i
-        while j > 0 and starts[j - 1] >= stop:
-            j -= 1
-        return pieces[j:i]
 
 
 def suppress(cands: list[Candidate], m: int) -> list[Candidate]:
@@ -221,7 +225,7 @@ class CandidatePool:
         sc, pr, a, b, ky = cols
         before_start = [i for i in self._greedy if i < start]
         greedy, self._decided = _greedy(pr.tolist(), a.tolist(), b.tolist(), start,
-                                        before_start, self.cap)  # fmt: skip
+                                        before_start, self.cap, _ordinary(a, b))  # fmt: skip
         self._greedy = list(greedy)
         kept = greedy
         if kept:
