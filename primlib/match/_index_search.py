@@ -371,10 +371,11 @@ class IndexSearch:
         head = head[gates.valid(head)]
         head = head[self.in_range(aq, head)[0]]
         share = head.size / sampled  # of the windows, those valid and in time-scale range
+        lbs = self.speed_bound(aq, head)  # per window: the picked ones' bounds are theirs
         if head.size > self.first_batch:
-            lbs = self.speed_bound(aq, head)
-            head = np.sort(head[np.argpartition(lbs, self.first_batch - 1)[: self.first_batch]])
-        self._batch(aq, pool, head, self.speed_bound(aq, head), None, gates.at(head))
+            pick = np.sort(np.argpartition(lbs, self.first_batch - 1)[: self.first_batch])
+            head, lbs = head[pick], lbs[pick]  # head is increasing: so is head[pick]
+        self._batch(aq, pool, head, lbs, None, gates.at(head))
         known = math.isfinite(pool.combined)
         if known:
             rest = self._screen(aq, gates, pool.combined, share)
@@ -589,8 +590,11 @@ def _blocks(n: int, size: int = 1 << 16):
 
 
 def _not_in(rest: np.ndarray, head: np.ndarray, n: int) -> np.ndarray:
-    """Mask of the values of ``rest`` not in ``head`` (both of integers in [0, n)), from n
-    flags (O(n): np.isin sorts, which cost far more on millions of windows)."""
+    """Mask of the values of ``rest`` not in ``head`` (integers in [0, n), ``head`` increasing):
+    by binary search in ``head`` for fewer than n/16, else from n flags (np.isin sorts)."""
+    if rest.size * 16 < n and head.size:
+        at = np.minimum(np.searchsorted(head, rest), head.size - 1)
+        return head[at] != rest
     seen = np.zeros(n, dtype=bool)
     seen[head] = True
     return ~seen[rest]
