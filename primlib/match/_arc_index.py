@@ -108,16 +108,6 @@ class ArcIndex:
             hit = self.cache[key] = strided_prefix_sums(self.levels[jb].pts, dil, products)
         return hit
 
-    def point_major(self, jb: int, dil: int, products: bool = True) -> np.ndarray:
-        """:meth:`sums` transposed, in C order (L, c): the bounds gather a few thousand
-        windows' columns from it (one cache line a window, where the rows lie a level's
-        length apart); built once per (level, dilation), the size of the sums."""
-        key = ("t", jb, dil, products)
-        hit = self.cache.get(key)
-        if hit is None:
-            hit = self.cache[key] = np.ascontiguousarray(self.sums(jb, dil, products)[0].T)
-        return hit
-
     def x_sums(self, jb: int, dil: int) -> tuple[np.ndarray, float, float]:
         """:func:`~primlib.match._bounds.strided_cumsum` of level jb's sample indices at
         stride dil (the speed-profile bound's input), built once per (level, dilation)."""

@@ -170,18 +170,15 @@ class IndexSearch:
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil, products=rotation != "full")
         d = aq.qc.shape[1]
         margin = half_bound_margin(aq.k, d, pmax, radius)
-        pm = None
         if isinstance(ws, tuple):  # window m of the range reads the columns from c0 on
             psum, ws, n = psum[:, ws[0] :], None, ws[1] - ws[0]
-        elif ws is None:
-            n = aq.n_windows
-        else:  # gathered: from the sums transposed (the same values, faster)
-            n, pm = ws.size, aq.index.point_major(aq.jb, aq.dil, rotation != "full")
+        else:
+            n = aq.n_windows if ws is None else ws.size
         if rotation == "full":
-            return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws, pm)
+            return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws)
         # per-axis energies: each carries up to the total's error bound
         return half_window_bound_fixed(
-            psum, n, aq.dil, aq.moments, margin * math.sqrt(d), rotation, ws, pm
+            psum, n, aq.dil, aq.moments, margin * math.sqrt(d), rotation, ws
         )
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
@@ -191,8 +188,7 @@ class IndexSearch:
         far; the rotation-invariant search builds no products)."""
         if self.opts.rotation != "full":
             psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
-            pm = aq.index.point_major(aq.jb, aq.dil)
-            return principal_bound(psum, ws, aq.dil, aq.moments, pmax, radius, pm)
+            return principal_bound(psum, ws, aq.dil, aq.moments, pmax, radius)
         radius = aq.index.sums(aq.jb, aq.dil, products=False)[2]
         return principal_bound_points(aq.level.pts, ws, aq.dil, aq.moments, radius)
 
