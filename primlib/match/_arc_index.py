@@ -244,7 +244,8 @@ def _at_samples(sm: ArcSamples, offsets: np.ndarray, base: np.ndarray, x: np.nda
         seg += np.repeat(offsets[g0:g1], n_g)
         lo = np.take(pts, seg, axis=0)
         seg += 1
-        out = np.take(pts, seg, axis=0, out=p[r0:r1])
+        # mode "clip" (every index is in range): the default "raise" buffers ``out``
+        out = np.take(pts, seg, axis=0, out=p[r0:r1], mode="clip")
         out -= lo
         out *= f[:, None]
         out += lo
