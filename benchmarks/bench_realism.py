@@ -11,7 +11,11 @@ pitch that depends on the absolute position; a trial-varying input disturbance (
 a 20 Hz structural mode (damping 0.05); and all of them together.
 
 The library is learned ON that machine, as a real one would be: each of the 14 example
-primitives (scripts/build_example_library.py) runs at its own place on the table, trial after
+primitives (scripts/build_example_library.py) runs at its own place on the table, from the
+first input ``primlib trials start`` gives it by default (the library's warm start as the
+library stands then -- where nothing matches, the inverse of the model fitted to the pairs
+stored so far; the first primitive, the nominal inverse; ``--library-start inverse``: the
+nominal inverse for every one, as if each were learned into an empty library), trial after
 trial with the machine's noise and disturbance, under primlib's noise-aware trial learner
 (:class:`primlib.ilc.TrialLearner`, norm-optimal on the nominal model) until its stop rule
 says it reached the noise floor (at most 30 trials), and the input of the trial with the
@@ -64,6 +68,7 @@ from primlib.ilc import ConvergenceWarning, TrialLearner  # noqa: E402
 from primlib.nurbs import Trajectory  # noqa: E402
 from primlib.pipeline import Library  # noqa: E402
 from primlib.plant import Machine, RealisticMachine, invert, typical_scales  # noqa: E402
+from primlib.trials import first_input  # noqa: E402
 
 # fractions of the typical input (viscous: of the typical input at the typical speed)
 SETTINGS: dict[str, dict[str, float]] = {
@@ -127,7 +132,14 @@ def run_series(true, learner, origin, u0, trials: int, first_trial: int, stop: b
 
 
 def learn_library(
-    lib: Library, true, nominal: Machine, rng, trials: int, count: int | None = None, calm=None
+    lib: Library,
+    true,
+    nominal: Machine,
+    rng,
+    trials: int,
+    count: int | None = None,
+    calm=None,
+    first: str = "warm",
 ) -> list[dict]:
     """Each example primitive learned on the machine at its own place; stored with it.
 
@@ -146,8 +158,12 @@ def learn_library(
         # differ from run to run); the same trial numbers for every primitive would replay
         # one noise sequence into all of them, which the grey-box fit then takes for the
         # machine's structure
+        # the first input a series gets (primlib.trials.start): the library's warm start as
+        # it stands -- the library grows with use -- or, with ``first="inverse"``, the
+        # nominal model's inverse (every primitive learned as if the library were empty)
+        u0 = first_input(lib, traj, "xyz", first=first, eps=EPS)[0]
         errors, inputs, outputs = run_series(
-            true, learner, origin, invert(nominal, ref), trials, _LIBRARY_TRIALS * k, stop=True
+            true, learner, origin, u0, trials, _LIBRARY_TRIALS * k, stop=True
         )
         # what a finished series stores (primlib.trials.finish): the input of the trial with
         # the lowest measured error, run until the learner's stop rule (the noise floor) or
@@ -206,7 +222,14 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
     with Library() as lib:
         lib.add_machine(nominal)
         placed = learn_library(
-            lib, true, nominal, rng, args.library_trials, args.primitives, calm=calm
+            lib,
+            true,
+            nominal,
+            rng,
+            args.library_trials,
+            args.primitives,
+            calm=calm,
+            first=args.library_start,
         )
         t_lib = time.perf_counter() - t0
         rows: dict[str, list] = {k: [] for k in KINDS}
@@ -283,6 +306,13 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--settings", default="all", help="comma-separated names, or all")
     ap.add_argument("--primitives", type=int, default=None, help="the first N only (smoke)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--library-start",
+        choices=("warm", "inverse"),
+        default="warm",
+        help="each primitive's first input: the library's warm start as it stands "
+        "(primlib trials start's default), or the nominal inverse (an empty library)",
+    )
     ap.add_argument("--quick", action="store_true", help="1 path per kind, 3 trials")
     ap.add_argument("--json", type=Path, help="write the figures here")
     args = ap.parse_args(argv)

@@ -12,7 +12,7 @@ from primlib.nurbs import Trajectory
 from primlib.pipeline import Library
 from primlib.plant import Machine, invert
 from primlib.store import TrialStore
-from primlib.trials import Plant, TrialSeries, pending, start, status, step
+from primlib.trials import Plant, TrialSeries, first_input, pending, start, status, step
 
 ROOT = Path(__file__).resolve().parents[1]
 STAGE = Machine.from_json(ROOT / "examples" / "stage" / "stage.json")
@@ -108,3 +108,19 @@ def test_finish_refuses_a_series_that_has_not_converged_unless_forced():
             start(lib, glyph, "stage", first="hot")
         with pytest.raises(InputError, match="options: expected among .* got unknown 'gain'"):
             start(lib, glyph, "stage", gain=2.0)
+
+
+def test_first_input_is_what_a_series_starts_from_and_says_where_it_came_from():
+    with Library() as lib:
+        lib.add_machine(_datasheet())
+        glyph = _glyph(duration=0.6)
+        pts = glyph.sample(STAGE.dt)
+        # an empty library: the machine model's inverse, said to be one
+        u0, kind, notes = first_input(lib, glyph, "stage")
+        assert kind == "inverse" and "nothing in the library matches" in notes[0]
+        np.testing.assert_array_equal(u0, invert(_datasheet(), pts - pts[0]))
+        assert np.count_nonzero(first_input(lib, glyph, "stage", first="cold")[0]) == 0
+        with pytest.raises(InputError, match="first: expected one of"):
+            first_input(lib, glyph, "stage", first="zero")
+        started = start(lib, glyph, "stage")
+        np.testing.assert_array_equal(started.u, u0)

@@ -183,18 +183,46 @@ def learner(model, reference: np.ndarray, options: dict[str, Any]):
 _FIRST = ("warm", "inverse", "cold")
 
 
-def _first_input(lib, traj, machine: str, ref: np.ndarray, first: str, eps: float | None):
-    """(u0, start kind, notes): the warm start, else the model inverse (and say so)."""
+def first_input(
+    lib, traj, machine: str, *, first: str = "warm", eps: float | None = None
+) -> tuple[np.ndarray, str, list[str]]:
+    """The first input of a new path's trials, as :func:`start` records it.
+
+    Parameters
+    ----------
+    lib : Library
+    traj : Trajectory
+        The path, absolute coordinates.
+    machine : str
+    first : {"warm", "inverse", "cold"}
+        The library's warm start (where nothing matches, the inverse of the model fitted
+        to the library's stored pairs, else of the machine's model), the machine model's
+        inverse, or zero.
+    eps : float, optional
+        Match tolerance (default: 3e-4 of the path's extent).
+
+    Returns
+    -------
+    u0 : ndarray, shape (n, d)
+    kind : str
+        ``"warm"``, ``"inverse"`` (also where nothing matched) or ``"cold"``.
+    notes : list of str
+        What was used and why.
+    """
     from primlib.plant import invert
 
+    if first not in _FIRST:
+        raise InputError(f"first: expected one of {', '.join(_FIRST)}, got {first!r}")
     model = lib.machine(machine)
+    points = traj.sample(model.dt)
+    ref = points - points[0]
     if first == "cold":
         return np.zeros_like(ref), "cold", ["cold start: the first input is zero"]
     if first == "inverse":
         return invert(model, ref), "inverse", ["the first input is the model inverse (asked for)"]
     from primlib.match import default_eps
 
-    origin = traj.sample(model.dt)[0]  # a series' path is in absolute coordinates
+    origin = points[0]  # a series' path is in absolute coordinates
     try:
         ws = lib.warm_start(traj, machine=machine, eps=eps or default_eps(traj), origin=origin)
     except NoMatchError as exc:
@@ -280,7 +308,7 @@ def start(
     points = traj.sample(model.dt)
     ref = points - points[0]
     learner(model, ref, opts)  # checks the options before anything is written
-    u0, kind, notes = _first_input(lib, traj, machine, ref, first, eps)
+    u0, kind, notes = first_input(lib, traj, machine, first=first, eps=eps)
     sid = _store(lib).create(
         traj, points, u0, machine=machine, start=kind, options=opts, notes=notes, name=name
     )
