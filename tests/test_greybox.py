@@ -12,7 +12,7 @@ from stage_helpers import stage_pair as _stage_pair
 
 from primlib import InputError
 from primlib.greybox import TERMS, Pair, fit_greybox
-from primlib.greybox._features import ripple_columns
+from primlib.greybox._features import ripple_columns, ripple_grid
 from primlib.greybox._robust import HOLD, SLOW, moving, robust_fit, undetermined
 from primlib.plant import Machine, RealisticMachine, invert
 
@@ -297,3 +297,19 @@ def test_the_robust_fit_finds_the_model_and_exactly_the_rows_that_break_it(seed)
     # friction): its path determines it, slow or at rest
     far = r + np.where(bad, np.sign(r - F @ coef) * (HOLD * 0.3 + 0.1), 0.0)
     np.testing.assert_array_equal(undetermined(F, far, coef, scale, speed), ~rows & ~bad)
+
+
+def test_the_ripple_grid_is_the_ripple_columns_at_each_frequency():
+    rng = np.random.default_rng(3)
+    x = 20.0 + np.cumsum(rng.uniform(-0.05, 0.1, 5000))
+    step = np.diff(x, append=x[-1])
+    step[::37] = 0.0  # samples at rest: the interval mean is the value itself
+    ws = np.linspace(0.05, 12.0, 64)
+    got = ripple_grid(x, step, ws)
+    want = ripple_columns(x[:, None], step[:, None], ws[None, :]).transpose(2, 1, 0)
+    # the rotation adds about an ulp of the phase a step: 64 steps at phases up to
+    # w x ~ 3e3 rad are ~ 64 * 3e3 * 2.2e-16 = 4e-11 at most
+    phase = float(np.max(ws) * np.max(np.abs(x)))
+    assert np.max(np.abs(got - want)) <= 64 * phase * np.finfo(float).eps
+    one = ripple_grid(x, step, ws[:1])  # one frequency: no rotation, a few ulps
+    assert np.max(np.abs(one - want[:1])) <= 8 * phase * np.finfo(float).eps

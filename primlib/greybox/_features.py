@@ -144,3 +144,38 @@ def ripple_columns(position: np.ndarray, step: np.ndarray, w: float) -> np.ndarr
     damp = np.sinc(half / np.pi)  # numpy's sinc is sin(pi t) / (pi t)
     mid = w * position + half
     return np.stack([damp * np.sin(mid), damp * np.cos(mid)], axis=1)
+
+
+def ripple_grid(position: np.ndarray, step: np.ndarray, ws: np.ndarray) -> np.ndarray:
+    """:func:`ripple_columns` at each of the evenly spaced frequencies ``ws``, shape
+    (len(ws), 2, n): sin rows, then cos rows.
+
+    The sines and cosines of ``w x`` and of ``w dx / 2`` are taken once at the first
+    frequency and at the spacing, and rotated to each next frequency by the angle-sum
+    identities -- four products a row instead of three transcendental functions and a
+    division (the ripple search scores thousands of frequencies, and the sin, cos and sinc
+    of each were most of a grey-box fit's time). The rotation's round-off grows by about an
+    ulp a step; against the direct formula, 5e-12 at 64 steps and phases of 3e4 rad, where
+    the direct formula's own round-off is of that order.
+    """
+    ws = np.asarray(ws, dtype=float)
+    half = 0.5 * step
+    mid = position + half
+    count = ws.size
+    dw = (ws[-1] - ws[0]) / (count - 1) if count > 1 else 0.0
+    s, c = np.sin(ws[0] * mid), np.cos(ws[0] * mid)
+    sd, cd = np.sin(dw * mid), np.cos(dw * mid)
+    hs, hc = np.sin(ws[0] * half), np.cos(ws[0] * half)
+    hsd, hcd = np.sin(dw * half), np.cos(dw * half)
+    moving = half != 0
+    inv = np.divide(1.0, half, out=np.zeros_like(half), where=moving)
+    out = np.empty((count, 2, position.size))
+    for k in range(count):
+        if k:
+            s, c = s * cd + c * sd, c * cd - s * sd
+            hs, hc = hs * hcd + hc * hsd, hc * hcd - hs * hsd
+        # sinc(w dx / 2): sin(w h) / (w h), 1 where the sample does not move
+        damp = np.where(moving, hs * (inv / ws[k]), 1.0) if ws[k] != 0 else np.ones_like(half)
+        np.multiply(damp, s, out=out[k, 0])
+        np.multiply(damp, c, out=out[k, 1])
+    return out

@@ -53,6 +53,7 @@ from primlib.greybox._features import (
     axis_features,
     hard_friction,
     ripple_columns,
+    ripple_grid,
     speed_scale,
 )
 from primlib.greybox._model import LIN, GreyBox, Pair, checked_origin, model_gap, model_inverse
@@ -121,17 +122,16 @@ def _sse_batch(A, G00, b0, r2, rr, x, dxs, on, ws: np.ndarray) -> np.ndarray:
     """:func:`_ripple_search`'s in-sample SSE at each frequency of ``ws`` at once: the
     ripple columns of a batch of frequencies, their products with the base columns and the
     bordered normal matrices, solved batched (the grid has up to ``_GRID_MAX`` points)."""
-    S = ripple_columns(x[:, None], dxs[:, None], ws[None, :]) * on[:, None, None]  # (r, 2, B)
-    S = S.transpose(2, 0, 1)  # (B, r, 2)
-    AS = np.einsum("rp,brk->bpk", A, S)
-    SS = np.einsum("brk,brl->bkl", S, S)
+    S = ripple_grid(x, dxs, ws) * on  # (B, 2, r), rows of unknown position 0
+    AS = (S @ A).transpose(0, 2, 1)  # (B, p, 2)
+    SS = S @ S.transpose(0, 2, 1)
     p = A.shape[1]
     G = np.empty((ws.size, p + 2, p + 2))
     G[:, :p, :p] = G00
     G[:, :p, p:] = AS
     G[:, p:, :p] = AS.transpose(0, 2, 1)
     G[:, p:, p:] = SS
-    b = np.concatenate([np.broadcast_to(b0, (ws.size, p)), S.transpose(0, 2, 1) @ rr], axis=1)
+    b = np.concatenate([np.broadcast_to(b0, (ws.size, p)), S @ rr], axis=1)
     ridge = _RIDGE * np.maximum(np.trace(G, axis1=1, axis2=2) / (p + 2), 1e-300)
     G[:, np.arange(p + 2), np.arange(p + 2)] += ridge[:, None]
     c = np.linalg.solve(G, b[..., None])[..., 0]
