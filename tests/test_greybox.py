@@ -311,5 +311,7 @@ def test_the_ripple_grid_is_the_ripple_columns_at_each_frequency():
     # w x ~ 3e3 rad are ~ 64 * 3e3 * 2.2e-16 = 4e-11 at most
     phase = float(np.max(ws) * np.max(np.abs(x)))
     assert np.max(np.abs(got - want)) <= 64 * phase * np.finfo(float).eps
+    weight = rng.uniform(0.0, 2.0, x.size) * (np.arange(x.size) % 5 != 0)
+    np.testing.assert_allclose(ripple_grid(x, step, ws, weight), got * weight, rtol=1e-12)
     one = ripple_grid(x, step, ws[:1])  # one frequency: no rotation, a few ulps
     assert np.max(np.abs(one - want[:1])) <= 8 * phase * np.finfo(float).eps

@@ -146,9 +146,11 @@ def ripple_columns(position: np.ndarray, step: np.ndarray, w: float) -> np.ndarr
     return np.stack([damp * np.sin(mid), damp * np.cos(mid)], axis=1)
 
 
-def ripple_grid(position: np.ndarray, step: np.ndarray, ws: np.ndarray) -> np.ndarray:
+def ripple_grid(
+    position: np.ndarray, step: np.ndarray, ws: np.ndarray, weight: np.ndarray | None = None
+) -> np.ndarray:
     """:func:`ripple_columns` at each of the evenly spaced frequencies ``ws``, shape
-    (len(ws), 2, n): sin rows, then cos rows.
+    (len(ws), 2, n): sin rows, then cos rows; each row times ``weight`` where given.
 
     The sines and cosines of ``w x`` and of ``w dx / 2`` are taken once at the first
     frequency and at the spacing, and rotated to each next frequency by the angle-sum
@@ -168,14 +170,23 @@ def ripple_grid(position: np.ndarray, step: np.ndarray, ws: np.ndarray) -> np.nd
     hs, hc = np.sin(ws[0] * half), np.cos(ws[0] * half)
     hsd, hcd = np.sin(dw * half), np.cos(dw * half)
     moving = half != 0
-    inv = np.divide(1.0, half, out=np.zeros_like(half), where=moving)
+    wt = np.ones_like(half) if weight is None else np.asarray(weight, dtype=float)
+    # sinc(w dx / 2) = sin(w h) / (w h), 1 where the sample does not move (h = 0, where the
+    # rotated sin(w h) stays exactly 0): hs * inv / w + rest, the weight folded into both
+    inv = np.divide(wt, half, out=np.zeros_like(half), where=moving)
+    rest = np.where(moving, 0.0, wt)
     out = np.empty((count, 2, position.size))
+    damp = np.empty_like(half)
     for k in range(count):
         if k:
             s, c = s * cd + c * sd, c * cd - s * sd
             hs, hc = hs * hcd + hc * hsd, hc * hcd - hs * hsd
-        # sinc(w dx / 2): sin(w h) / (w h), 1 where the sample does not move
-        damp = np.where(moving, hs * (inv / ws[k]), 1.0) if ws[k] != 0 else np.ones_like(half)
+        if ws[k] != 0:
+            np.multiply(hs, inv, out=damp)
+            damp *= 1.0 / ws[k]
+            damp += rest
+        else:
+            damp[:] = wt
         np.multiply(damp, s, out=out[k, 0])
         np.multiply(damp, c, out=out[k, 1])
     return out

@@ -122,7 +122,7 @@ def _sse_batch(A, G00, b0, r2, rr, x, dxs, on, ws: np.ndarray) -> np.ndarray:
     """:func:`_ripple_search`'s in-sample SSE at each frequency of ``ws`` at once: the
     ripple columns of a batch of frequencies, their products with the base columns and the
     bordered normal matrices, solved batched (the grid has up to ``_GRID_MAX`` points)."""
-    S = ripple_grid(x, dxs, ws) * on  # (B, 2, r), rows of unknown position 0
+    S = ripple_grid(x, dxs, ws, on)  # (B, 2, r), rows of unknown position 0
     AS = (S @ A).transpose(0, 2, 1)  # (B, p, 2)
     SS = S @ S.transpose(0, 2, 1)
     p = A.shape[1]
