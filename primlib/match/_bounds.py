@@ -384,8 +384,17 @@ def half_window_bound_fixed(
         # C order, as the squares' rows gathered from the sums were: np.einsum adds the
         # axes' terms in another order on another layout (the last bit of the bound)
         q1, q2 = map(np.ascontiguousarray, _halves(psum, sq, starts, c0, c1, k1 * dil, k * dil))
-        dvec = s1 * (1.0 / k1) - s2 * (1.0 / k2) - query.half_vector[:, None]
-        e = [np.maximum(q - s * s * (1.0 / kh), 0.0) for s, q, kh in ((s1, q1, k1), (s2, q2, k2))]
+        # each step as written, in place where the layout then stays what it was (the
+        # squares' energies C-ordered: q's order wins over the products')
+        dvec = s1 * (1.0 / k1)
+        dvec -= s2 * (1.0 / k2)
+        dvec -= query.half_vector[:, None]
+        e = []
+        for s, q, kh in ((s1, q1, k1), (s2, q2, k2)):
+            t = s * s
+            t *= 1.0 / kh
+            t = q - t
+            e.append(np.maximum(t, 0.0, out=t))
         if rotation == "z":
             pv = s1[:2] * (1.0 / k1) - s2[:2] * (1.0 / k2)
             dxy = np.sqrt(np.einsum("ij,ij->j", pv, pv)) - math.hypot(*query.half_vector[:2])
@@ -400,7 +409,8 @@ def half_window_bound_fixed(
             dist2 = np.einsum("ij,ij->j", dvec, dvec)
             gap = 0.0
             for h, kh in ((0, k1), (1, k2)):
-                g = np.sqrt(e[h] / kh) - np.sqrt(query.half_axis_energy[h] / kh)[:, None]
+                g = np.sqrt(np.divide(e[h], kh, out=e[h]), out=e[h])
+                g -= np.sqrt(query.half_axis_energy[h] / kh)[:, None]
                 gap = gap + kh * np.einsum("ij,ij->j", g, g)
         out = np.sqrt((k1 * k2 / k * dist2 + gap) / k, out=lb[c0:c1])
         out -= margin + 1e-12 * (query.gyration + out)
