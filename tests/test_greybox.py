@@ -250,6 +250,7 @@ def test_rows_a_path_does_not_determine_do_not_bias_the_friction():
         pairs.append(Pair(u, path))
     gb = fit_greybox(lin, pairs, linear=False)
     assert np.all(gb.hard)  # a plain Coulomb machine: the hard sign on every axis
+    assert not any("not separable" in n for n in gb.notes)  # every axis reverses
     c = dict(zip(TERMS, gb.coef.T, strict=True))
     # within 1 % (the wander alone, fitted as it was, put it 5-10 % off; the smooth tanh
     # sign took another 5 %)
@@ -315,3 +316,27 @@ def test_the_ripple_grid_is_the_ripple_columns_at_each_frequency():
     np.testing.assert_allclose(ripple_grid(x, step, ws, weight), got * weight, rtol=1e-12)
     one = ripple_grid(x, step, ws[:1])  # one frequency: no rotation, a few ulps
     assert np.max(np.abs(one - want[:1])) <= 8 * phase * np.finfo(float).eps
+
+
+def test_an_axis_that_moved_one_way_says_its_coulomb_level_and_bias_are_not_separable():
+    # Coulomb friction 0.3 everywhere; z only rises in every stored pair, x and y reverse
+    fc = 0.3
+    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    rm = RealisticMachine.from_machine(xyz, coulomb=fc)
+    lin = rm.nominal()
+    rng = np.random.default_rng(2)
+    pairs = []
+    for k in range(4):
+        path = _smooth_path(400 + 50 * k, rng, None)
+        s = np.linspace(0.0, 1.0, len(path))
+        path[:, 2] = 15 * s**3 * (10 - 15 * s + 6 * s**2)  # rest to rest, upward only
+        v = np.diff(path, axis=0, append=path[-1:]) / lin.dt
+        u = invert(lin, path) + fc * np.sign(np.where(np.abs(v) > 1e-9, v, 0.0))
+        pairs.append(Pair(u, rm.simulate(u)))
+    gb = fit_greybox(lin, pairs, linear=False)
+    assert np.all(gb.coef[:, TERMS.index("coulomb")] != 0)
+    said = [n for n in gb.notes if "not separable" in n]
+    assert len(said) == 1 and said[0].startswith("axis z moved up in 100 %")
+    # moving the rising axis, the fit can only tell the sum in that direction
+    c = dict(zip(TERMS, gb.coef[2], strict=True))
+    assert abs(c["coulomb"] + c["stribeck"] + c["bias"] - fc) < 0.01 * fc

@@ -392,7 +392,7 @@ def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
         _choice_text(c, p, w, seg)
         for c, p, w, seg in zip(choices, predicted, shares, res.segments, strict=True)
     ]
-    notes = (*base.notes, f"grey-box model of the machine: {gb.describe()}")
+    notes = (*base.notes, f"grey-box model of the machine: {gb.describe()}", *gb.notes)
     return replace(
         base,
         u=u,
