@@ -14,9 +14,9 @@ meant to be exact). Goals (issue 13): 2,400 samples against the
 bundled library <= 1 s, against 1,000 primitives <= 2 s; ``rotation none`` and time scale
 1-1 never slower than the default; 2,400 -> 24,000 samples x12 or less (``--long``).
 
-Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400] [--big] [--long]
-[--baseline REV | --no-baseline] [--cases default "rotation none" ...] [--glyph-chain]
-[--shrink F]``;
+Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400]
+[--big [--big-cases CASE ...]] [--long] [--baseline REV | --no-baseline]
+[--cases default "rotation none" ...] [--glyph-chain] [--shrink F]``;
 ``--glyph-chain`` times the cases on ``data/paths/glyph-chain.csv`` (the restricted
 searches of ``bench_match.py --restricted``) instead, beside the baseline; ``--shrink 1e-6``
 scales the novel paths (and eps) down until they barely move against the primitives.
@@ -175,6 +175,13 @@ def main() -> None:
     ap.add_argument("--paths", type=int, default=3)
     ap.add_argument("--samples", type=int, default=2400)
     ap.add_argument("--big", action="store_true", help="also 1,000 random primitives")
+    ap.add_argument(
+        "--big-cases",
+        nargs="+",
+        default=["default"],
+        choices=list(CASES),
+        help="the cases timed on the 1,000 random primitives (default: default only)",
+    )
     ap.add_argument("--long", action="store_true", help="also 10x the samples (default only)")
     ap.add_argument("--baseline", default=BASELINE)
     ap.add_argument("--no-baseline", action="store_true")
@@ -213,7 +220,7 @@ def main() -> None:
                   "file": "data/paths/glyph-chain.csv"}]  # fmt: skip
     if args.big:
         specs.append({"library": "random-1000", "samples": args.samples, "paths": args.paths,
-                      "cases": ["default"]})  # fmt: skip
+                      "cases": args.big_cases})  # fmt: skip
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     with tempfile.TemporaryDirectory(prefix="bench_novel_") as tmp:
         old_tree = None if args.no_baseline else extract(args.baseline, tmp)
