@@ -223,6 +223,19 @@ def _smooth_path(n: int, rng, still: int | None) -> np.ndarray:
     return path
 
 
+def _coulomb_machine(fc: float):
+    """The xyz machine with Coulomb friction ``fc`` on every axis, and its linear part."""
+    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    rm = RealisticMachine.from_machine(xyz, coulomb=fc)
+    return rm, rm.nominal()
+
+
+def _coulomb_input(lin: Machine, path: np.ndarray, fc: float) -> np.ndarray:
+    """The exact input of ``path`` on a plain Coulomb machine: linear inverse + fc sgn(v)."""
+    v = np.diff(path, axis=0, append=path[-1:]) / lin.dt
+    return invert(lin, path) + fc * np.sign(np.where(np.abs(v) > 1e-9, v, 0.0))
+
+
 def test_rows_a_path_does_not_determine_do_not_bias_the_friction():
     # Coulomb friction 0.3 on every axis. Each stored input is the exact inverse (linear part
     # plus 0.3 sgn(v)); where an axis rests, ILC would have left whatever input it had there,
@@ -230,15 +243,12 @@ def test_rows_a_path_does_not_determine_do_not_bias_the_friction():
     # follows each path with its input (a resting axis stays put, exactly; elsewhere within
     # 5 um: the stick at a reversal), so (input, path) is a converged pair.
     fc = 0.3
-    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
-    rm = RealisticMachine.from_machine(xyz, coulomb=fc)
-    lin = rm.nominal()
+    rm, lin = _coulomb_machine(fc)
     rng = np.random.default_rng(5)
     pairs, rest = [], []
     for k, still in enumerate([None, 1, 0, None, 2]):
         path = _smooth_path(400 + 50 * k, rng, still)
-        v = np.diff(path, axis=0, append=path[-1:]) / lin.dt
-        u = invert(lin, path) + fc * np.sign(np.where(np.abs(v) > 1e-9, v, 0.0))
+        u = _coulomb_input(lin, path, fc)
         if still is not None:
             t = np.linspace(0, 1, len(u))
             u[:, still] = 0.8 * fc * np.sin(2 * np.pi * rng.uniform(2, 5) * t + rng.uniform(0, 6))
@@ -321,17 +331,14 @@ def test_the_ripple_grid_is_the_ripple_columns_at_each_frequency():
 def test_an_axis_that_moved_one_way_says_its_coulomb_level_and_bias_are_not_separable():
     # Coulomb friction 0.3 everywhere; z only rises in every stored pair, x and y reverse
     fc = 0.3
-    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
-    rm = RealisticMachine.from_machine(xyz, coulomb=fc)
-    lin = rm.nominal()
+    rm, lin = _coulomb_machine(fc)
     rng = np.random.default_rng(2)
     pairs = []
     for k in range(4):
         path = _smooth_path(400 + 50 * k, rng, None)
         s = np.linspace(0.0, 1.0, len(path))
         path[:, 2] = 15 * s**3 * (10 - 15 * s + 6 * s**2)  # rest to rest, upward only
-        v = np.diff(path, axis=0, append=path[-1:]) / lin.dt
-        u = invert(lin, path) + fc * np.sign(np.where(np.abs(v) > 1e-9, v, 0.0))
+        u = _coulomb_input(lin, path, fc)
         pairs.append(Pair(u, rm.simulate(u)))
     gb = fit_greybox(lin, pairs, linear=False)
     assert np.all(gb.coef[:, TERMS.index("coulomb")] != 0)
