@@ -169,12 +169,12 @@ def ripple_grid(
     sd, cd = np.sin(dw * mid), np.cos(dw * mid)
     hs, hc = np.sin(ws[0] * half), np.cos(ws[0] * half)
     hsd, hcd = np.sin(dw * half), np.cos(dw * half)
-    moving = half != 0
+    moves = half != 0  # not the module's ``moving`` (a speed threshold): an exact zero here
     wt = np.ones_like(half) if weight is None else np.asarray(weight, dtype=float)
     # sinc(w dx / 2) = sin(w h) / (w h), 1 where the sample does not move (h = 0, where the
     # rotated sin(w h) stays exactly 0): hs * inv / w + rest, the weight folded into both
-    inv = np.divide(wt, half, out=np.zeros_like(half), where=moving)
-    rest = np.where(moving, 0.0, wt)
+    inv = np.divide(wt, half, out=np.zeros_like(half), where=moves)
+    rest = np.where(moves, 0.0, wt)
     out = np.empty((count, 2, position.size))
     damp = np.empty_like(half)
     for k in range(count):
