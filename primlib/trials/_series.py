@@ -208,13 +208,30 @@ def first_input(
         ``"warm"``, ``"inverse"`` (also where nothing matched) or ``"cold"``.
     notes : list of str
         What was used and why.
-    """
-    from primlib.plant import invert
 
+    Raises
+    ------
+    InputError
+        A path of another number of axes than the machine's, or an unknown ``first``.
+    """
+    model = _checked(lib, traj, machine, first)
+    return _first_input(lib, traj, machine, model, traj.sample(model.dt), first, eps)
+
+
+def _checked(lib, traj, machine: str, first: str):
+    """The machine's model, once the path's axes and ``first`` are known to fit it."""
+    model = lib.machine(machine)
+    if traj.dim != model.dim:
+        raise InputError(f"path: expected {model.dim} axes for machine {machine!r}, got {traj.dim}")
     if first not in _FIRST:
         raise InputError(f"first: expected one of {', '.join(_FIRST)}, got {first!r}")
-    model = lib.machine(machine)
-    points = traj.sample(model.dt)
+    return model
+
+
+def _first_input(lib, traj, machine: str, model, points: np.ndarray, first: str, eps):
+    """:func:`first_input` on checked arguments and the path's samples ``points``."""
+    from primlib.plant import invert
+
     ref = points - points[0]
     if first == "cold":
         return np.zeros_like(ref), "cold", ["cold start: the first input is zero"]
@@ -299,16 +316,11 @@ def start(
     from primlib.nurbs import Trajectory
 
     traj = path if isinstance(path, Trajectory) else Trajectory.from_csv(path)
-    model = lib.machine(machine)
-    if traj.dim != model.dim:
-        raise InputError(f"path: expected {model.dim} axes for machine {machine!r}, got {traj.dim}")
-    if first not in _FIRST:
-        raise InputError(f"first: expected one of {', '.join(_FIRST)}, got {first!r}")
+    model = _checked(lib, traj, machine, first)
     opts = _options(options)
     points = traj.sample(model.dt)
-    ref = points - points[0]
-    learner(model, ref, opts)  # checks the options before anything is written
-    u0, kind, notes = first_input(lib, traj, machine, first=first, eps=eps)
+    learner(model, points - points[0], opts)  # checks the options before anything is written
+    u0, kind, notes = _first_input(lib, traj, machine, model, points, first, eps)
     sid = _store(lib).create(
         traj, points, u0, machine=machine, start=kind, options=opts, notes=notes, name=name
     )
