@@ -122,5 +122,8 @@ def test_first_input_is_what_a_series_starts_from_and_says_where_it_came_from():
         assert np.count_nonzero(first_input(lib, glyph, "stage", first="cold")[0]) == 0
         with pytest.raises(InputError, match="first: expected one of"):
             first_input(lib, glyph, "stage", first="zero")
+        flat = Trajectory.from_samples(np.c_[pts, np.zeros(len(pts))], STAGE.dt)
+        with pytest.raises(InputError, match="path: expected 2 axes for machine 'stage'"):
+            first_input(lib, flat, "stage")
         started = start(lib, glyph, "stage")
         np.testing.assert_array_equal(started.u, u0)
