@@ -47,9 +47,9 @@ class ScanSearch(IndexSearch):
 
     name: ClassVar[str] = "scan"
 
-    def first_bound(self, aq: ArcQuery, ws=None) -> np.ndarray:
+    def first_bound(self, aq: ArcQuery, ws=None, stride: int = 1) -> np.ndarray:
         if isinstance(ws, tuple):
-            return np.zeros(ws[1] - ws[0])
+            return np.zeros(-(-(ws[1] - ws[0]) // stride))
         return np.zeros(aq.n_windows if ws is None else ws.size)
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
@@ -69,12 +69,13 @@ class InvariantBoundSearch(IndexSearch):
 
     name: ClassVar[str] = "invariant-bound"
 
-    def first_bound(self, aq: ArcQuery, ws=None) -> np.ndarray:
+    def first_bound(self, aq: ArcQuery, ws=None, stride: int = 1) -> np.ndarray:
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)
         margin = half_bound_margin(aq.k, aq.qc.shape[1], pmax, radius)
         if isinstance(ws, tuple):  # a range of windows: the columns from its first on
-            return half_window_bound(psum[:, ws[0] :], ws[1] - ws[0], aq.dil, aq.moments,
-                                     margin)  # fmt: skip
+            n = -(-(ws[1] - ws[0]) // stride)
+            return half_window_bound(psum[:, ws[0] :], n, aq.dil, aq.moments, margin,
+                                     None, stride)  # fmt: skip
         n = aq.n_windows if ws is None else ws.size
         return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws)
 

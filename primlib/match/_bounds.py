@@ -258,9 +258,10 @@ def half_bound_margin(k: int, d: int, pmax: np.ndarray, radius: float) -> float:
 
 
 def _columns(psum: np.ndarray, rows: slice, starts: np.ndarray | None, c0: int, c1: int,
-             shift: int) -> np.ndarray:  # fmt: skip
-    """Columns m + shift of ``psum``'s ``rows`` for the windows m: the block c0 <= m < c1
-    (a contiguous slice), or ``starts[c0:c1]`` (gathered).
+             shift: int, stride: int = 1) -> np.ndarray:  # fmt: skip
+    """Columns m + shift of ``psum``'s ``rows`` for the windows m: m = j·stride for the
+    block c0 <= j < c1 (a slice, contiguous when ``stride`` is 1), or ``starts[c0:c1]``
+    (gathered).
 
     Gathered row by row with ``np.take`` (a contiguous row each; 2.5x less time than the
     fancy index ``psum[rows, idx]`` on tens of thousands of windows of a million-point
@@ -269,7 +270,7 @@ def _columns(psum: np.ndarray, rows: slice, starts: np.ndarray | None, c0: int, 
     on another layout).
     """
     if starts is None:
-        return psum[rows, c0 + shift : c1 + shift]
+        return psum[rows, c0 * stride + shift : (c1 - 1) * stride + shift + 1 : stride]
     idx = starts[c0:c1] + shift
     at = range(*rows.indices(psum.shape[0]))
     out = np.empty((idx.size, len(at)))
@@ -279,12 +280,13 @@ def _columns(psum: np.ndarray, rows: slice, starts: np.ndarray | None, c0: int, 
 
 
 def _halves(psum: np.ndarray, rows: slice, starts: np.ndarray | None, c0: int, c1: int,
-            mid: int, end: int) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """Sums of ``psum``'s ``rows`` over the first and the second half of the windows c0
-    <= m < c1 (or ``starts[c0:c1]``): columns m + mid minus m, and m + end minus m + mid."""
-    p0 = _columns(psum, rows, starts, c0, c1, 0)
-    p1 = _columns(psum, rows, starts, c0, c1, mid)
-    return p1 - p0, _columns(psum, rows, starts, c0, c1, end) - p1
+            mid: int, end: int, stride: int = 1) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Sums of ``psum``'s ``rows`` over the first and the second half of the windows
+    m = j·stride, c0 <= j < c1 (or ``starts[c0:c1]``): columns m + mid minus m, and m + end
+    minus m + mid."""
+    p0 = _columns(psum, rows, starts, c0, c1, 0, stride)
+    p1 = _columns(psum, rows, starts, c0, c1, mid, stride)
+    return p1 - p0, _columns(psum, rows, starts, c0, c1, end, stride) - p1
 
 
 def half_window_bound(
@@ -294,6 +296,7 @@ def half_window_bound(
     query: QueryMoments,
     margin: float,
     starts: np.ndarray | None = None,
+    stride: int = 1,
 ) -> np.ndarray:
     """The half-window lower bound of every window m = 0 .. n_windows − 1 (module notes).
 
@@ -309,6 +312,9 @@ def half_window_bound(
         :func:`half_bound_margin` (subtracted, with 1e-12 of the values).
     starts : array of int, optional
         Bound only the windows starting there (``n_windows`` is then ``starts.size``).
+    stride : int
+        Without ``starts``: bound the windows m = j·stride, j < n_windows (strided slices of
+        ``psum``, not gathered: the coarse bounds of :mod:`._cone`).
 
     Returns
     -------
@@ -322,7 +328,7 @@ def half_window_bound(
     # contiguous slices, no gathering, in cache-sized blocks (2-3x faster than whole arrays)
     for c0 in range(0, n_windows, _BLOCK):
         c1 = min(c0 + _BLOCK, n_windows)
-        s1, s2 = _halves(psum, slice(0, d + 1), starts, c0, c1, k1 * dil, k * dil)
+        s1, s2 = _halves(psum, slice(0, d + 1), starts, c0, c1, k1 * dil, k * dil, stride)
         dd = s1[:d] * (1.0 / k1) - s2[:d] * (1.0 / k2)  # c1 − c2
         dd = np.sqrt(np.einsum("ij,ij->j", dd, dd))
         dd -= query.half_distance
@@ -355,6 +361,7 @@ def half_window_bound_fixed(
     margin: float,
     rotation: str,
     starts: np.ndarray | None = None,
+    stride: int = 1,
 ) -> np.ndarray:
     """The half-window bound for the restricted rotation families ``"none"`` and ``"z"``.
 
@@ -366,7 +373,7 @@ def half_window_bound_fixed(
     the xy centroid difference, xy radii of gyration), z as for ``"none"``. Both are far
     tighter than the rotation-invariant bound when the family is restricted. ``margin`` as
     for :func:`half_window_bound`, with the per-axis energies' errors (d times the total's);
-    ``starts`` as there.
+    ``starts`` and ``stride`` as there.
 
     Returns
     -------
@@ -380,10 +387,12 @@ def half_window_bound_fixed(
         c1 = min(c0 + _BLOCK, n_windows)
         # the coordinates' and the squares' rows alone: |p|² and the cross products are
         # not read (4 rows of 10 fewer to read and subtract, in 3-D)
-        s1, s2 = _halves(psum, slice(0, d), starts, c0, c1, k1 * dil, k * dil)
+        s1, s2 = _halves(psum, slice(0, d), starts, c0, c1, k1 * dil, k * dil, stride)
         # C order, as the squares' rows gathered from the sums were: np.einsum adds the
         # axes' terms in another order on another layout (the last bit of the bound)
-        q1, q2 = map(np.ascontiguousarray, _halves(psum, sq, starts, c0, c1, k1 * dil, k * dil))
+        q1, q2 = map(
+            np.ascontiguousarray, _halves(psum, sq, starts, c0, c1, k1 * dil, k * dil, stride)
+        )
         # each step as written, in place where the layout then stays what it was (the
         # squares' energies C-ordered: q's order wins over the products')
         dvec = s1 * (1.0 / k1)
