@@ -16,10 +16,13 @@ RMS difference of the normalised time at the samples (the speed profile), and wi
 scored best-first in order of provable lower bounds of that score (:mod:`._bounds`: a bound
 on the speed term from prefix sums of the sample index on every window, the half-window
 bound on the shape RMSD on what passes, the principal-value bound on the survivors; a sample
-of the windows fills the pool first so that its threshold prunes from the start), exact
-float64 scores only for what passes — until no unscored window's bound is below the pool's
-threshold (:mod:`._pool`) or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer level's
-step; a stored copy starts within Δ_b/2 of a window). The pool is re-scored at sub-step
+of the windows fills the pool first so that its threshold prunes from the start; where the
+shape bound would be taken on most windows, the cone of :mod:`._cone` first drops whole
+blocks of windows from the bounds at every 8th window: a window's RMSD moves by at most
+the spacing of its points from one window to the next), exact float64 scores only for
+what passes — until no unscored window's bound is below the pool's threshold
+(:mod:`._pool`) or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer level's step; a
+stored copy starts within Δ_b/2 of a window). The pool is re-scored at sub-step
 shifts of its windows' starts (a copy is then within Δ_b/8 of a shift); the best ``seeds``
 distinct windows, and every other one within √2·(3ε + Δ_b/8) of the best, become the seeds,
 which the exact check (:mod:`._segment`) decides between.
@@ -49,6 +52,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from primlib.match import _cone
 from primlib.match._arc_index import ArcIndex, ArcQuery
 from primlib.match._bank import BankIndex
 from primlib.match._bounds import (
@@ -87,6 +91,7 @@ class IndexSearch:
     first_batch: int = 512
     sample: int = 32
     gather_fraction: float = 0.25
+    cone: tuple[int, ...] = _cone.SIZES  # block sizes of the cone rejection; (): none
     stats: SearchStats = field(default_factory=SearchStats)
     name: ClassVar[str] = "index"
 
@@ -161,24 +166,24 @@ class IndexSearch:
             idx, jb, lv, dil, step, ell, u, qc, sq, QueryMoments.of(qc), dq, per_axis, smoothing
         )
 
-    def first_bound(self, aq: ArcQuery,
-                    ws: np.ndarray | tuple[int, int] | None = None) -> np.ndarray:  # fmt: skip
+    def first_bound(self, aq: ArcQuery, ws: np.ndarray | tuple[int, int] | None = None,
+                    stride: int = 1) -> np.ndarray:  # fmt: skip
         """Half-window lower bound of the shape RMSD of every window, or of windows ``ws``
-        (an index array, or a range (c0, c1): sliced, not gathered) (:mod:`._bounds`), the
-        per-axis form when the rotation family is restricted."""
+        (an index array, or a range (c0, c1): sliced, not gathered; every ``stride``-th of
+        it) (:mod:`._bounds`), the per-axis form when the rotation family is restricted."""
         rotation = self.opts.rotation
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil, products=rotation != "full")
         d = aq.qc.shape[1]
         margin = half_bound_margin(aq.k, d, pmax, radius)
         if isinstance(ws, tuple):  # window m of the range reads the columns from c0 on
-            psum, ws, n = psum[:, ws[0] :], None, ws[1] - ws[0]
+            psum, ws, n = psum[:, ws[0] :], None, -(-(ws[1] - ws[0]) // stride)
         else:
             n = aq.n_windows if ws is None else ws.size
         if rotation == "full":
-            return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws)
+            return half_window_bound(psum, n, aq.dil, aq.moments, margin, ws, stride)
         # per-axis energies: each carries up to the total's error bound
         return half_window_bound_fixed(
-            psum, n, aq.dil, aq.moments, margin * math.sqrt(d), rotation, ws
+            psum, n, aq.dil, aq.moments, margin * math.sqrt(d), rotation, ws, stride
         )
 
     def second_bound(self, aq: ArcQuery, ws: np.ndarray) -> np.ndarray:
@@ -379,7 +384,7 @@ class IndexSearch:
             if rest.size == 0:
                 return pool
             lbs = self.speed_bound(aq, rest)
-            keep = lbs < pool.combined
+            keep = (lbs < pool.combined) & _cone.alive(self, aq, gates, rest, self.cone)
             rest, lbs = rest[keep], lbs[keep]
             if rest.size > self.gather_fraction * aq.n_windows:
                 lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
@@ -501,6 +506,7 @@ class IndexSearch:
         else:
             rest = self._screen(aq, gates, math.inf)
             rest = rest[_not_in(rest, head, aq.n_windows)]
+            rest = rest[_cone.alive(self, aq, gates, rest, self.cone)]
             lb1 = self.first_bound(aq, rest)
             keep = lb1 < gates.at(rest)
         return rest[keep], lb1[keep]
@@ -508,19 +514,9 @@ class IndexSearch:
     def _screen_shape(self, aq: ArcQuery, gates: _Gates) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_screen` with no threshold, the shape bound against the gate first, by
         blocks of windows: the time-scale test then reads the few below the gate, and no
-        index array of every window is formed."""
-        out, bounds = [], []
-        for c0, c1 in _blocks(aq.n_windows):
-            ok = gates.valid((c0, c1))
-            self.stats.windows += int(np.count_nonzero(ok))
-            lb1 = self.first_bound(aq, (c0, c1))
-            ok &= lb1 < gates.at((c0, c1))
-            at = np.flatnonzero(ok)
-            ws = c0 + at
-            inside = self.in_range(aq, ws, screen=True)[0]
-            out.append(ws[inside])
-            bounds.append(lb1[at[inside]])
-        return np.concatenate(out), np.concatenate(bounds)
+        index array of every window is formed; the cone (:mod:`._cone`) drops most blocks
+        before the shape bound is taken on their windows."""
+        return _cone.screen_shape(self, aq, gates, self.cone)
 
     def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
                lbc: np.ndarray | None, gates: np.ndarray) -> None:  # fmt: skip

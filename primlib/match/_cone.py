@@ -1,0 +1,252 @@
+"""Cone rejection: a proven lower bound at every B-th window rejects the windows between.
+
+Windows m and m' = m + δ of one index level (K points p_{m+i·dil}, :mod:`._index_search`)
+whose points all lie in one primitive differ point by point by
+D_i = p_{m'+i·dil} − p_{m+i·dil} = Σ_{j<δ} d_{m+i·dil+j}, sums of δ of the consecutive
+differences d_j = p_{j+1} − p_j over the windows' point range. Each D_i therefore lies in
+δ·[lo, hi] (lo, hi: the bounding box of those d_j), so |D_i − t| ≤ δ·h with t the box's
+centre times δ and h = ½|hi − lo|, or with t = 0 and h = max_j |d_j|; the smaller of the two
+holds. For any family F of orthogonal R ("full", "z", "none"), (R', t') optimal for P':
+rmsd(P, Q) ≤ rms(R'P + t' + R't − Q) ≤ rmsd(P', Q) + rms(R'(P' − P − t)) ≤ rmsd(P', Q) + δ·h
+(the triangle inequality; R' keeps lengths). So a lower bound LB at the windows c and c + B
+(the block's ends) bounds every window m between:
+rmsd(m) ≥ max(LB(c) − (m − c)h, LB(c + B) − (c + B − m)h)
+≥ max((LB(c) + LB(c + B) − B·h)/2, LB(c) − B·h, LB(c + B) − B·h).
+A block whose value reaches the largest gate of its windows holds no window the pool can
+take (it takes shape RMSDs below the gate alone): it is dropped before any of its windows
+is bounded. Blocks whose point range [c, c + B + span − 1] crosses a primitive's end (a
+window may run a little past it, :class:`._gates.Gates`) are not covered and keep every
+window. Round-off: the differences and the box err by a few u·max|p| each (u = 2⁻⁵³), B·h
+by B·~12u·max|p| < 10⁻¹²·max|p| for B < 700; the value is lowered by
+10⁻¹²·(max|p| + |LB(c)| + |LB(c + B)| + the query's radius of gyration), the LBs carry their
+own margins (:mod:`._bounds`).
+
+The slopes h of every block of a level are cached in the index's ``cache`` per (level, B,
+tiles a block reads) (:func:`block_slopes`), so queries on the same level share them; the
+strided bounds at every B-th window (:func:`alive_blocks`) are the one cost a query adds,
+and a probe at every 8·B-th window skips the cone where it would leave too many blocks.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from primlib.match._arc_index import ArcIndex, ArcQuery
+    from primlib.match._gates import Gates
+    from primlib.match._index_search import IndexSearch
+
+__all__ = ["SIZES", "block_slopes", "cone_values", "alive_blocks", "alive", "screen_shape"]
+
+# block sizes of the bisection (:func:`alive_blocks`): the strided bounds at every 8th
+# window, the survivors halved into blocks of 4 (on 1,000 primitives, rotation "none":
+# 6.5 % of the windows left for the fine bound; starting at 16 or 32 costs more in gathered
+# middle bounds than it saves in strided ones)
+SIZES = (8, 4)
+PROBE = 8  # the probe of :func:`alive_blocks` bounds every PROBE-th block's first window
+
+
+def block_slopes(index: ArcIndex, jb: int, span: int, size: int) -> np.ndarray:
+    """The slope h of every block j (windows jB .. jB + B − 1, B = ``size``) of level jb,
+    for windows of ``span`` points: the smaller of half the diagonal of the bounding box,
+    and the largest norm, of the differences d_i over tiles j .. j + w − 1 of B differences
+    (w = 1 + ⌈(span − 1)/B⌉: they hold the block's, d_jB .. d_jB+B+span−2); +inf where
+    the points jB .. jB + w·B (all of the block's, and a few more) are not all of one
+    primitive. Cached in ``index.cache`` per (level, B, w), rounded up to float32 (half the
+    memory; a larger slope only loosens the bound)."""
+    w = 1 + -(-(span - 1) // size)
+    key = ("cone", jb, size, w)
+    hit = index.cache.get(key)
+    if hit is not None:
+        return hit
+    lo, hi, top = _tiles(index, jb, size)
+    lo, hi, top = -_sliding_max(-lo, w), _sliding_max(hi, w), _sliding_max(top, w)
+    hi -= lo
+    box = 0.5 * np.sqrt(np.einsum("ij,ij->i", hi, hi))
+    h = np.minimum(np.where(np.isfinite(box), box, np.inf), top)
+    prim = index.levels[jb].prim
+    first = np.arange(h.size) * size
+    h[prim[first] != prim[np.minimum(first + w * size, prim.size - 1)]] = np.inf
+    up = h.astype(np.float32)
+    low = up < h
+    up[low] = np.nextafter(up[low], np.float32(np.inf))
+    index.cache[key] = up
+    return up
+
+
+def _tiles(index: ArcIndex, jb: int, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per tile of ``size`` consecutive differences d_i of level jb (tile j: d_jB ..
+    d_jB+B−1): their bounding box (lo, hi, (nb, d)) and largest norm (nb,). A difference
+    across a primitive's end counts as zero (a block whose points cross one is not
+    covered, whatever its tiles hold; a zero only widens the box of the tiles it is in).
+    Tiles of 2B from those of B; cached in ``index.cache`` per (level, B) for B >= 4."""
+    key = ("cone-tiles", jb, size)
+    hit = index.cache.get(key)
+    if hit is not None:
+        return hit
+    if size % 2 == 0:  # pairs of the tiles of size / 2 (the last one paired with itself)
+        lo, hi, top = _tiles(index, jb, size // 2)
+        odd = lo.shape[0] % 2
+        lo, hi, top = (np.concatenate([a, a[-1:]]) if odd else a for a in (lo, hi, top))
+        lo = np.minimum(lo[0::2], lo[1::2])
+        hi = np.maximum(hi[0::2], hi[1::2])
+        top = np.maximum(top[0::2], top[1::2])
+    elif size > 1:
+        raise ValueError(f"Expected a cone block size of 1 or even, got {size}")
+    else:
+        lv = index.levels[jb]
+        lo = np.diff(lv.pts, axis=0, append=lv.pts[-1:])
+        lo[:-1][lv.prim[1:] != lv.prim[:-1]] = 0.0
+        hi = lo
+        top = np.sqrt(np.einsum("ij,ij->i", lo, lo))
+    if size >= 4:
+        index.cache[key] = (lo, hi, top)
+    return lo, hi, top
+
+
+def _sliding_max(a: np.ndarray, w: int) -> np.ndarray:
+    """max of a[j : j + w] along the first axis for every j (past the end: what is left),
+    by doubling: log2(w) passes."""
+    n = a.shape[0]
+    tail = np.full((w - 1,) + a.shape[1:], -np.inf)
+    r = np.concatenate([a, tail])
+    span = 1
+    while 2 * span <= w:
+        r = np.maximum(r[:-span], r[span:])
+        span *= 2
+    if span < w:
+        r = np.maximum(r[: r.shape[0] - (w - span)], r[w - span :])
+    return r[:n]
+
+
+def cone_values(lb_a: np.ndarray, lb_b: np.ndarray, h: np.ndarray, size: int,
+                scale: float) -> np.ndarray:  # fmt: skip
+    """Lower bound of every window's shape RMSD in each block, from the bounds ``lb_a`` and
+    ``lb_b`` at its ends (−inf where the far end is past the last window), its slope ``h``
+    and the round-off scale (max|p| + the query's radius of gyration) (module notes)."""
+    with np.errstate(invalid="ignore"):  # inf − inf: a block not covered, nan, not below
+        rise = size * h
+        v = np.maximum(np.maximum(0.5 * (lb_a + lb_b - rise), lb_a - rise), lb_b - rise)
+        v -= 1e-12 * (scale + np.abs(lb_a) + np.where(np.isfinite(lb_b), np.abs(lb_b), 0.0))
+    return np.where(np.isnan(v), -np.inf, v)
+
+
+def _block_gates(gates: Gates, n: int, size: int) -> np.ndarray | float:
+    """The largest gate of the windows of each block of ``size`` windows of 0 .. n − 1
+    (the gate alone when windows carry no deviations)."""
+    g = gates.at((0, n))
+    if np.ndim(g) == 0:
+        return g
+    nb = -(-n // size)
+    return np.pad(g, (0, nb * size - n), constant_values=-np.inf).reshape(nb, size).max(1)
+
+
+def _scale(search: IndexSearch, aq: ArcQuery) -> float:
+    """max |p| of the level plus the query's radius of gyration (:func:`cone_values`)."""
+    radius = aq.index.sums(aq.jb, aq.dil, products=search.opts.rotation != "full")[2]
+    return radius + aq.moments.gyration
+
+
+def _pays(search: IndexSearch, aq: ArcQuery, gates: Gates, size: int, scale: float) -> bool:
+    """Whether the cone leaves at most ``search.gather_fraction`` of the blocks of ``size``
+    windows, estimated from the bound at every ``PROBE · size``-th window, one end alone
+    (LB(c) − B·h against the largest gate)."""
+    lb = search.first_bound(aq, (0, aq.n_windows), stride=PROBE * size)
+    h = block_slopes(aq.index, aq.jb, aq.span, size)[::PROBE][: lb.size]
+    left = cone_values(lb, np.full(lb.size, -np.inf), h, size, scale) < gates.top
+    return bool(np.count_nonzero(left) <= search.gather_fraction * lb.size)
+
+
+def alive_blocks(search: IndexSearch, aq: ArcQuery, gates: Gates,
+                 sizes: tuple[int, ...] = SIZES) -> np.ndarray | None:  # fmt: skip
+    """Mask of the blocks of ``sizes[-1]`` windows of the query that may hold a window
+    below its gate, by bisection: the cone (module notes) on blocks of ``sizes[0]``
+    windows from strided bounds at every ``sizes[0]``-th window, then each surviving
+    block halved with the bound at its middle window (gathered), down to ``sizes[-1]``.
+    None when a probe (the bound at every ``PROBE``-th coarse window) finds that more than
+    ``search.gather_fraction`` of the blocks would be left: the fine bound on the few left,
+    gathered, costs ~3.5 times as much a window as on all, sliced. Memoised on the query
+    (one set of gates a query)."""
+    key = ("cone", sizes)
+    if key in aq.memo:
+        return aq.memo[key]
+    n = aq.n_windows
+    scale = _scale(search, aq)
+    size = sizes[0]
+    if not _pays(search, aq, gates, size, scale):
+        aq.memo[key] = None
+        return None
+    nb = -(-n // size)
+    ends = search.first_bound(aq, (0, min(nb * size + 1, n)), stride=size)
+    blk = np.arange(nb)
+    la = ends[:nb]
+    lb = np.full(nb, -np.inf)
+    lb[: ends.size - 1] = ends[1:]
+    for i, size in enumerate(sizes):
+        if i:  # halve the survivors: the bound at each one's middle window
+            half = sizes[i - 1] // size
+            if half != 2:
+                raise ValueError(f"Expected cone block sizes halving, got {sizes}")
+            mid = (2 * blk + 1) * size
+            inside = mid < n
+            lm = np.full(blk.size, -np.inf)
+            lm[inside] = search.first_bound(aq, mid[inside])
+            blk = np.stack([2 * blk, 2 * blk + 1], axis=1)
+            la = np.stack([la, lm], axis=1)
+            lb = np.stack([lm, lb], axis=1)
+            keep = (blk * size < n).ravel()
+            blk, la, lb = blk.ravel()[keep], la.ravel()[keep], lb.ravel()[keep]
+        h = block_slopes(aq.index, aq.jb, aq.span, size)[blk]
+        g = _block_gates(gates, n, size)
+        live = cone_values(la, lb, h, size, scale) < (g if np.ndim(g) == 0 else g[blk])
+        blk, la, lb = blk[live], la[live], lb[live]
+    out = np.zeros(-(-n // sizes[-1]), dtype=bool)
+    out[blk] = True
+    aq.memo[key] = out
+    return out
+
+
+def alive(search: IndexSearch, aq: ArcQuery, gates: Gates, ws: np.ndarray,
+          sizes: tuple[int, ...] = SIZES) -> np.ndarray:  # fmt: skip
+    """Mask of windows ``ws`` the cone does not reject (:func:`alive_blocks`): all True
+    when they are too few for the coarse bounds to pay (fewer than one a ``sizes[0]``), or
+    the cone would leave too many."""
+    if not sizes or ws.size * sizes[0] < aq.n_windows:
+        return np.ones(ws.size, dtype=bool)
+    cone = alive_blocks(search, aq, gates, sizes)
+    return np.ones(ws.size, dtype=bool) if cone is None else cone[ws // sizes[-1]]
+
+
+def screen_shape(search: IndexSearch, aq: ArcQuery, gates: Gates,
+                 sizes: tuple[int, ...] = SIZES) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Every valid window whose shape bound is below its gate and whose time scale is in
+    range, and those bounds (:meth:`._index_search.IndexSearch._screen_shape`), by chunks
+    of windows; with ``sizes`` (empty: none) the cone (:func:`alive_blocks`) drops the
+    blocks that cannot hold one first, and the fine bound is taken on the valid windows of
+    the others alone (gathered when few, else on the whole chunk, sliced)."""
+    out, bounds = [], []
+    n = aq.n_windows
+    cone = alive_blocks(search, aq, gates, sizes) if sizes else None
+    for c0 in range(0, n, 1 << 16):
+        c1 = min(c0 + (1 << 16), n)
+        ok = gates.valid((c0, c1))
+        search.stats.windows += int(np.count_nonzero(ok))
+        if cone is not None:
+            size = sizes[-1]
+            ok &= np.repeat(cone[c0 // size : -(-c1 // size)], size)[: c1 - c0]
+        if cone is None or np.count_nonzero(ok) > search.gather_fraction * (c1 - c0):
+            lb1 = search.first_bound(aq, (c0, c1))
+            ok &= lb1 < gates.at((c0, c1))
+            at = np.flatnonzero(ok)
+            ws, lb1 = c0 + at, lb1[at]
+        else:
+            ws = c0 + np.flatnonzero(ok)
+            lb1 = search.first_bound(aq, ws)
+            keep = lb1 < gates.at(ws)
+            ws, lb1 = ws[keep], lb1[keep]
+        inside = search.in_range(aq, ws, screen=True)[0]
+        out.append(ws[inside])
+        bounds.append(lb1[inside])
+    return np.concatenate(out), np.concatenate(bounds)

@@ -1,0 +1,137 @@
+"""The cone rejection of the index search (primlib.match._cone): its block bound is below the
+exact RMSD of every window of the block, and the search drops windows with it without
+changing a seed or a segmentation."""
+
+import numpy as np
+import pytest
+from test_match_index_search import DT, _harmonics
+
+from primlib.match import BankIndex, SearchOptions, kabsch
+from primlib.match._arc_index import ArcIndex, Level
+from primlib.match._cone import block_slopes, cone_values
+from primlib.match._gates import Gates
+from primlib.match._index_search import IndexSearch
+from primlib.match._options import PathPiece
+from primlib.match._segment import segment_with
+from primlib.store import Bank
+
+
+def _level(rng, lengths: list[int], d: int, turn: float) -> ArcIndex:
+    """An index of one level: random walks (steps of ~1 turning by ``turn`` radians a point
+    at most), one a primitive, laid end to end."""
+    pts, prim = [], []
+    for i, n in enumerate(lengths):
+        ang = np.cumsum(rng.uniform(-turn, turn, size=(n, d - 1)), axis=0)
+        step = np.ones((n, d))
+        step[:, 0] = np.cos(ang[:, 0])
+        step[:, 1] = np.sin(ang[:, 0])
+        if d == 3:
+            step[:, :2] *= np.cos(ang[:, 1])[:, None]
+            step[:, 2] = np.sin(ang[:, 1])
+        p = np.cumsum(step * rng.uniform(0.5, 1.0, size=(n, 1)), axis=0)
+        pts.append(p - p.mean(axis=0))
+        prim.append(np.full(n, i, dtype=np.int32))
+    p = np.concatenate(pts)
+    m = p.shape[0]
+    zeros = np.zeros(m)
+    level = Level(1.0, p, np.concatenate(prim), zeros, np.arange(m, dtype=float), zeros)
+    return ArcIndex(1.0, (level,), zeros, zeros)
+
+
+_CASES = [(3, 0.3, 4, 1, 16), (3, 1.5, 8, 2, 20), (2, 0.6, 8, 1, 17), (3, 0.05, 16, 2, 16)]
+
+
+@pytest.mark.parametrize(("rotation", "d", "turn", "size", "dil", "k"), [
+    (r, *case) for r in ("full", "z", "none") for case in _CASES if r != "z" or case[0] == 3
+])  # fmt: skip
+def test_the_cone_is_below_the_rmsd_of_every_window_of_its_block(rotation, d, turn, size,
+                                                                 dil, k):  # fmt: skip
+    # the tightest lower bounds at a block's ends (the exact RMSDs there) make the cone's
+    # inequality as tight as it can be; every window between must score at least its value
+    rng = np.random.default_rng(size * 100 + dil * 10 + d)
+    index = _level(rng, [90, 47, 130], d, turn)
+    pts = index.levels[0].pts
+    span = (k - 1) * dil + 1
+    n = pts.shape[0] - span + 1
+    h = block_slopes(index, 0, span, size)
+    nb = -(-n // size)
+    covered = np.isfinite(h[:nb])
+    assert covered.mean() > 0.5  # most blocks lie in one primitive
+    # a noisy copy of a window (the RMSD then varies fastest near it) and a random query
+    copy = pts[100 : 100 + span : dil] + rng.normal(size=(k, d)) * 0.05
+    for q in (copy, rng.normal(size=(k, d)) * 3.0):
+        exact = np.array([kabsch(pts[m : m + span : dil], q, rotation=rotation).rmsd
+                          for m in range(n)])  # fmt: skip
+        # the slope: |rmsd(m') − rmsd(m)| ≤ |m' − m|·h over each covered block and its far end
+        for j in np.flatnonzero(covered):
+            e = exact[j * size : min((j + 1) * size + 1, n)]
+            gap = np.abs(np.arange(e.size)[:, None] - np.arange(e.size))
+            assert np.all(np.abs(e[:, None] - e[None, :]) <= gap * h[j] * (1 + 1e-12) + 1e-12)
+        lb_a = exact[np.arange(nb) * size]
+        far = (np.arange(nb) + 1) * size
+        lb_b = np.where(far < n, exact[np.minimum(far, n - 1)], -np.inf)
+        worst = np.array([exact[j * size : min((j + 1) * size, n)].min() for j in range(nb)])
+        value = cone_values(lb_a, lb_b, h[:nb], size, 0.0)
+        assert np.all(value <= worst)
+    assert np.mean(value[covered] > 0) > 0.5  # far from the random query: not vacuous
+    # a block whose points cross a primitive's end is not covered
+    prim = index.levels[0].prim
+    first = np.arange(nb) * size
+    crosses = prim[first] != prim[np.minimum(first + size + span - 1, prim.size - 1)]
+    np.testing.assert_array_equal(~covered, crosses)
+
+
+@pytest.fixture(scope="module")
+def library():
+    rng = np.random.default_rng(5)
+    bank = BankIndex(Bank.from_samples(_harmonics(rng, 40, 400), DT))
+    path = _harmonics(rng, 1, 600)[0]
+    return bank, path
+
+
+class _Counting(IndexSearch):
+    """The index search, counting the windows its fine shape bound is taken on."""
+
+    fine = 0
+
+    def first_bound(self, aq, ws=None, stride=1):
+        out = super().first_bound(aq, ws, stride)
+        if stride == 1:
+            self.fine += out.size
+        return out
+
+
+@pytest.mark.parametrize("rotation", ["full", "none"])
+def test_segmentations_with_and_without_the_cone_are_equal(library, rotation):
+    bank, path = library
+    opts = SearchOptions(rotation=rotation)
+    runs = []
+    # chunk 256: every query through the sample, the screen and the best-first batches;
+    # gather_fraction 1: the cone taken wherever it applies, whether it pays or not
+    for cone, gather in (((), 0.25), ((8, 4), 0.25), ((8, 4), 1.0), ((16, 8, 4), 1.0)):
+        search = _Counting(bank, opts, chunk=256, first_batch=64, cone=cone,
+                           gather_fraction=gather)  # fmt: skip
+        segments, _ = segment_with(search, bank, path, DT, 0.05, opts)
+        runs.append((repr(segments), search.fine))
+    assert all(r[0] == runs[0][0] for r in runs)
+    if rotation == "none":  # the per-axis bound is tight: the cone drops most blocks
+        assert runs[1][1] < 0.3 * runs[0][1]
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+def test_the_cone_keeps_every_window_below_its_gate(library, rotation):
+    # a short piece at a generous eps: windows below the gate; the screen with the cone
+    # (taken wherever it applies: gather_fraction 1) returns exactly those of the screen
+    # without it, with the same bounds
+    bank, path = library
+    piece = PathPiece(path, (len(path) - 1) * DT)
+    out = {}
+    for cone in ((), (8, 4), (16, 8, 4)):
+        search = IndexSearch(bank, SearchOptions(rotation=rotation), chunk=256, cone=cone,
+                             gather_fraction=1.0)  # fmt: skip
+        aq = search.arc_query(piece, 0.2, 0.26, 1.0)
+        out[cone] = search._screen_shape(aq, Gates.of(aq, 1.0))
+    assert out[()][0].size > 0
+    for cone in ((8, 4), (16, 8, 4)):
+        np.testing.assert_array_equal(out[cone][0], out[()][0])
+        np.testing.assert_allclose(out[cone][1], out[()][1], rtol=1e-12, atol=1e-12)
