@@ -45,7 +45,7 @@ __all__ = ["SIZES", "block_slopes", "cone_values", "alive_blocks", "alive", "scr
 # 6.5 % of the windows left for the fine bound; starting at 16 or 32 costs more in gathered
 # middle bounds than it saves in strided ones)
 SIZES = (8, 4)
-PROBE = 8  # the probe of :func:`alive_blocks` bounds every PROBE-th block's first window
+PROBE, PROBE_BLOCKS = 8, 2048  # :func:`_pays`: every PROBE-th block, ~PROBE_BLOCKS at most
 
 
 def block_slopes(index: ArcIndex, jb: int, span: int, size: int) -> np.ndarray:
@@ -151,10 +151,13 @@ def _scale(search: IndexSearch, aq: ArcQuery) -> float:
 
 def _pays(search: IndexSearch, aq: ArcQuery, gates: Gates, size: int, scale: float) -> bool:
     """Whether the cone leaves at most ``search.gather_fraction`` of the blocks of ``size``
-    windows, estimated from the bound at every ``PROBE · size``-th window, one end alone
-    (LB(c) − B·h against the largest gate)."""
-    lb = search.first_bound(aq, (0, aq.n_windows), stride=PROBE * size)
-    h = block_slopes(aq.index, aq.jb, aq.span, size)[::PROBE][: lb.size]
+    windows, estimated on every p-th block (p ≥ ``PROBE``, at most ~``PROBE_BLOCKS``
+    blocks: a strided bound costs a cache miss a row, and the estimate needs no more) from
+    the bound at its first window alone (LB(c) − B·h against the largest gate)."""
+    nb = -(-aq.n_windows // size)
+    every = max(PROBE, nb // PROBE_BLOCKS)
+    lb = search.first_bound(aq, (0, aq.n_windows), stride=every * size)
+    h = block_slopes(aq.index, aq.jb, aq.span, size)[::every][: lb.size]
     left = cone_values(lb, np.full(lb.size, -np.inf), h, size, scale) < gates.top
     return bool(np.count_nonzero(left) <= search.gather_fraction * lb.size)
 
@@ -165,7 +168,7 @@ def alive_blocks(search: IndexSearch, aq: ArcQuery, gates: Gates,
     below its gate, by bisection: the cone (module notes) on blocks of ``sizes[0]``
     windows from strided bounds at every ``sizes[0]``-th window, then each surviving
     block halved with the bound at its middle window (gathered), down to ``sizes[-1]``.
-    None when a probe (the bound at every ``PROBE``-th coarse window) finds that more than
+    None when a probe (:func:`_pays`, the bounds of a sample of the blocks) finds that more than
     ``search.gather_fraction`` of the blocks would be left: the fine bound on the few left,
     gathered, costs ~3.5 times as much a window as on all, sliced. Memoised on the query
     (one set of gates a query)."""
