@@ -119,3 +119,68 @@ def test_fine_indexes_keep_level_zero_and_stay_within_the_cap(monkeypatch):
     assert bank.fine_arc_index(3) is eight
     assert bank.fine_arc_index(1) is not two
     assert sum(f.n_points for f in bank._fine.values()) <= 8.5 * n0 + 2 * bank.k
+
+
+def _reference_arcs(sm, lv0_counts, levels):
+    """Each level's global arc and arc left as the build once held them: level 0 formed by
+    np.repeat over every point (first + n·step0, length − n·step0), each coarser level
+    every other point of the one below (np.compress), as the pyramid is taken."""
+    step0 = levels[0].step
+    first = sm.starts + sm.gap
+    base = np.concatenate([[0], np.cumsum(lv0_counts)])
+    local = np.arange(base[-1]) - np.repeat(base[:-1], lv0_counts)
+    arc = local * step0
+    garc, left = np.repeat(first, lv0_counts) + arc, np.repeat(sm.length, lv0_counts) - arc
+    out = []
+    for _ in levels:
+        out.append((garc, left))
+        sel = local % 2 == 0
+        garc, left, local = garc[sel], left[sel], local[sel] // 2
+    return out
+
+
+def _banks():
+    rng = np.random.default_rng(7)
+    walks = [np.cumsum(rng.normal(size=(int(n), 3)), axis=0) for n in rng.integers(2, 900, 9)]
+    noisy = [w + rng.normal(size=w.shape) * 0.3 for w in walks[:3]]
+    flat = [np.cumsum(rng.normal(size=(300, 2)), axis=0) for _ in range(3)]
+    return [_index(), BankIndex(Bank.from_samples(walks + noisy, 0.01)),
+            BankIndex(Bank.from_samples(flat, 0.01))]  # fmt: skip
+
+
+@pytest.mark.parametrize("which", [0, 1, 2])
+@pytest.mark.parametrize("j", [0, 1, 3])
+def test_arcs_computed_on_access_are_those_the_pyramid_held(which, j):
+    # garc and left are computed for the points asked (16 bytes a point not held): bit for
+    # bit what a level built by np.repeat, then halved by np.compress, held, whichever way
+    # they are indexed
+    bank = _banks()[which]
+    idx = bank.fine_arc_index(j)
+    lv0 = idx.levels[0]
+    counts = np.bincount(lv0.prim, minlength=bank.k)
+    rng = np.random.default_rng(j)
+    refs = _reference_arcs(bank.arc_samples(), counts, idx.levels)
+    for lv, (garc, left) in zip(idx.levels, refs,
+                                strict=True):  # fmt: skip
+        assert lv.garc.shape == garc.shape and len(lv.left) == left.size
+        np.testing.assert_array_equal(np.asarray(lv.garc), garc)
+        np.testing.assert_array_equal(np.asarray(lv.left), left)
+        some = rng.integers(0, garc.size, 40)
+        np.testing.assert_array_equal(lv.garc[some], garc[some])
+        np.testing.assert_array_equal(lv.left[3:-2], left[3:-2])
+        mask = rng.random(garc.size) < 0.3
+        np.testing.assert_array_equal(lv.left[mask], left[mask])
+
+
+@pytest.mark.parametrize("j", [0, 2])
+def test_points_that_fit_are_exactly_those_with_the_arc_left(j):
+    # counted per primitive by bisection on the arc-left formula: the same points as
+    # left >= need, for needs on, just above and just below a point's own arc left
+    for bank in _banks():
+        for lv in bank.fine_arc_index(j).levels:
+            left = np.asarray(lv.left)
+            rng = np.random.default_rng(lv.prim.size)
+            needs = [*left[rng.integers(0, left.size, 12)], 0.0, -1.0, left.max() * 1.01]
+            for need in needs:
+                for v in (need, np.nextafter(need, np.inf), np.nextafter(need, -np.inf)):
+                    np.testing.assert_array_equal(lv.fits(v), left >= v)

@@ -34,13 +34,96 @@ __all__ = ["ArcIndex", "Level", "ArcSamples", "ArcQuery"]
 
 @dataclass(frozen=True)
 class Level:
+    """One level of an :class:`ArcIndex`: M points, each primitive's at arc ``0, step,
+    2·step, ...`` from its start (``step = step0 · 2^shift``).
+
+    The global arc coordinate of each point (:attr:`garc`) and the arc left to its
+    primitive's end (:attr:`left`) are not held (16 bytes a point, a third of a level):
+    both are a per-primitive constant plus or minus ``(n · 2^shift) · step0`` for the
+    point's number n within its primitive, computed on access with the very operations
+    that formed them (the same values, bit for bit); :meth:`fits` tells which points have
+    a given arc left from per-primitive counts.
+    """
+
     step: float
     pts: np.ndarray  # (M, d) centred per primitive
     prim: np.ndarray  # (M,) int32
     x: np.ndarray  # (M,) fractional sample index in the primitive
-    garc: np.ndarray  # (M,) global arc coordinate (primitive arcs laid end to end)
-    left: np.ndarray  # (M,) arc length from this point to the primitive's end
+    start: np.ndarray  # (k,) each primitive's first point
+    first: np.ndarray  # (k,) global arc coordinate of each primitive's first point
+    length: np.ndarray  # (k,) each primitive's arc length
+    step0: float  # the step of level 0
+    shift: int = 0  # this level's number: its point n is level 0's point n · 2^shift
     dev2: np.ndarray | None = None  # (M,) squared deviation of the smoothed samples; None: 0
+
+    @property
+    def garc(self) -> _PerPoint:
+        """Global arc coordinate of each point (primitive arcs laid end to end), shape
+        (M,), computed for the points asked (``level.garc[ws]``)."""
+        return _PerPoint(self, True)
+
+    @property
+    def left(self) -> _PerPoint:
+        """Arc length from each point to its primitive's end, shape (M,), computed for the
+        points asked (``level.left[ws]``)."""
+        return _PerPoint(self, False)
+
+    def arc_from_start(self, n: np.ndarray) -> np.ndarray:
+        """Arc from a primitive's start to its point number n, as the build formed it:
+        ``(n · 2^shift) · step0`` (an exact integer times step0, one rounding)."""
+        return (np.asarray(n, dtype=np.int64) << self.shift) * self.step0
+
+    def fits(self, need: float) -> np.ndarray:
+        """Whether each point has at least ``need`` of arc left, shape (M,) bool: exactly
+        ``left >= need``. The arc left falls along a primitive (each rounding is monotone),
+        so the points that fit are the first c_p of each: c_p by bisection on the same
+        formula, per primitive."""
+        counts = np.diff(np.append(self.start, self.prim.size))
+        lo, hi = np.zeros_like(counts), counts.copy()
+        while True:
+            act = np.flatnonzero(lo < hi)
+            if act.size == 0:
+                break
+            mid = (lo[act] + hi[act]) // 2
+            ok = self.length[act] - self.arc_from_start(mid) >= need
+            lo[act] = np.where(ok, mid + 1, lo[act])
+            hi[act] = np.where(ok, hi[act], mid)
+        runs = np.column_stack([lo, counts - lo]).ravel()
+        return np.repeat(np.tile(np.array([True, False]), counts.size), runs)
+
+
+class _PerPoint:
+    """:attr:`Level.garc` or :attr:`Level.left`: indexed like an array of every point (a
+    slice, indices or a mask), computed for the points asked; ``np.asarray`` gives all."""
+
+    __slots__ = ("level", "garc")
+
+    def __init__(self, level: Level, garc: bool) -> None:
+        self.level, self.garc = level, garc
+
+    @property
+    def shape(self) -> tuple[int]:
+        return self.level.prim.shape
+
+    def __len__(self) -> int:
+        return self.level.prim.size
+
+    def __getitem__(self, key) -> np.ndarray:
+        lv = self.level
+        if isinstance(key, slice):
+            idx = np.arange(lv.prim.size)[key]
+        else:
+            idx = np.asarray(key)
+            if idx.dtype == bool:
+                idx = np.flatnonzero(idx)
+        p = lv.prim[idx]
+        arc = lv.arc_from_start(idx - lv.start[p])
+        # garc: first + arc (IEEE addition commutes); left: length − arc
+        return lv.first[p] + arc if self.garc else lv.length[p] - arc
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        out = self[:]
+        return out if dtype is None else out.astype(dtype)
 
 
 @dataclass(frozen=True)
@@ -173,29 +256,30 @@ class ArcIndex:
         base = np.concatenate([[0], np.cumsum(n_lv0)])
         local = np.arange(base[-1], dtype=np.int32)
         local -= np.repeat(base[:-1].astype(np.int32), n_lv0)
-        arc_local = local * step0
-        # arc -> sample index per primitive: one interp on a globally monotone arc axis
+        # arc -> sample index per primitive: one interp on a globally monotone arc axis, at
+        # each point's global arc coordinate first + local·step0 (Level.garc: the same)
         g_samples, sample_idx, gap = sm.garc, sm.x, sm.gap
-        garc = np.repeat(starts_arc + gap, n_lv0)
-        garc += arc_local
-        # not past a primitive's last sample (arc_local may overshoot its length by 1e-9)
+        first = starts_arc + gap
+        g = local * step0
+        g += np.repeat(first, n_lv0)
+        # not past a primitive's last sample (the arc may overshoot its length by 1e-9)
         end_arc = g_samples[bank.offsets[1:] - 1]
-        g_end = np.repeat(end_arc, n_lv0)
-        np.minimum(garc, g_end, out=g_end)
-        x = np.interp(g_end, g_samples, sample_idx)
-        del g_end
+        np.minimum(g, np.repeat(end_arc, n_lv0), out=g)
+        x = np.interp(g, g_samples, sample_idx)
+        del g
         # a primitive's first point lies a ramp (< 1e-6 of arc) before its first sample on
         # the axis: interpolated across the gap from the previous primitive, it came out at
         # ~1e-3 samples instead of 0
         x[base[:-1]] = 0.0
         p, dev2 = _at_samples(sm, bank.offsets, base, x, smoothed)
-        left = np.repeat(length, n_lv0)
-        left -= arc_local
         levels = []
         lv = 0
         longest = float(length.max())
+        counts = n_lv0
         while True:
-            levels.append(Level(step0 * (1 << lv), p, prim, x, garc, left, dev2))
+            start = base[:-1] if lv == 0 else np.concatenate([[0], np.cumsum(counts)[:-1]])
+            levels.append(Level(step0 * (1 << lv), p, prim, x, start, first, length, step0,
+                                lv, dev2))  # fmt: skip
             if p.shape[0] <= 2 * k or (1 << lv) * step0 * 16 > longest:
                 break
             if max_levels is not None and len(levels) >= max_levels:
@@ -204,10 +288,11 @@ class ArcIndex:
             # (M, d) points, a little less on the rest
             sel = (local & 1) == 0
             p = np.compress(sel, p, axis=0)
-            prim, x, garc, left = (np.compress(sel, a) for a in (prim, x, garc, left))
+            prim, x = np.compress(sel, prim), np.compress(sel, x)
             dev2 = None if dev2 is None else np.compress(sel, dev2)
             local = np.compress(sel, local)
             local >>= 1
+            counts = (counts + 1) // 2
             lv += 1
         return cls(step0, tuple(levels), sample_idx, g_samples, smoothed, end_arc=end_arc)
 

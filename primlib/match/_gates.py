@@ -21,7 +21,7 @@ class Gates:
 
     gate: float
     stored: np.ndarray | None  # RMS deviation of each window's smoothed samples, or None
-    left: np.ndarray  # level.left
+    fits: np.ndarray  # (M,) bool: the level's points with ``need`` of arc left
     need: float  # arc a window must have left
 
     @classmethod
@@ -34,7 +34,7 @@ class Gates:
         # chord lengths under-estimate arc length a little (more for the stored samples than
         # for the densely sampled query): let a piece reach a primitive's very end
         need = aq.ell - max(aq.step, 0.02 * aq.ell)
-        return cls(gate, stored, aq.level.left, need)
+        return cls(gate, stored, aq.level.fits(need), need)
 
     @property
     def top(self) -> float:
@@ -48,5 +48,5 @@ class Gates:
         return self.gate + 3.0 * self.stored[ws]
 
     def valid(self, ws: np.ndarray | tuple[int, int]) -> np.ndarray:
-        left = self.left[ws[0] : ws[1]] if isinstance(ws, tuple) else self.left[ws]
-        return left >= self.need
+        """Whether each window has ``need`` of arc left (a new array: callers narrow it)."""
+        return self.fits[ws[0] : ws[1]].copy() if isinstance(ws, tuple) else self.fits[ws]
