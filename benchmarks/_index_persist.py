@@ -59,8 +59,6 @@ def index_arrays(index: BankIndex) -> dict[str, np.ndarray]:
         out[f"pts{j}"] = lv.pts.ravel()
         out[f"prim{j}"] = lv.prim.astype(float)
         out[f"x{j}"] = lv.x
-        out[f"garc{j}"] = lv.garc
-        out[f"left{j}"] = lv.left
     return out
 
 

@@ -18,7 +18,8 @@ if TYPE_CHECKING:
 
 __all__ = ["BankIndex", "as_index"]
 
-# Finer arc-length indexes kept hold at most this many points in all (memory ~ 100 B / point).
+# Finer arc-length indexes kept hold at most this many points in all (memory ~ 80 B a point
+# with the prefix sums their queries keep beside them).
 _FINE_CAP = 4e6
 # Points of the base arc-length index per stored sample.
 _BASE_PPS = 0.25
