@@ -76,19 +76,23 @@ class Level:
     def fits(self, need: float) -> np.ndarray:
         """Whether each point has at least ``need`` of arc left, shape (M,) bool: exactly
         ``left >= need``. The arc left falls along a primitive (each rounding is monotone),
-        so the points that fit are the first c_p of each: c_p by bisection on the same
-        formula, per primitive."""
+        so the points that fit are the first c_p of each: c_p estimated from the step,
+        then moved one point at a time while the formula of :attr:`left` says otherwise
+        (the estimate is off by a rounding, at most a point or two)."""
         counts = np.diff(np.append(self.start, self.prim.size))
-        lo, hi = np.zeros_like(counts), counts.copy()
-        while True:
-            act = np.flatnonzero(lo < hi)
-            if act.size == 0:
+        with np.errstate(invalid="ignore", over="ignore"):
+            est = np.floor((self.length - need) / (self.step0 * (1 << self.shift))) + 1.0
+        c = np.clip(np.nan_to_num(est, nan=0.0), 0, counts).astype(np.int64)
+        while True:  # one more fits: up; the last counted does not: down
+            up = np.flatnonzero(c < counts)
+            up = up[self.length[up] - self.arc_from_start(c[up]) >= need]
+            down = np.flatnonzero(c > 0)
+            down = down[self.length[down] - self.arc_from_start(c[down] - 1) < need]
+            if up.size == 0 and down.size == 0:
                 break
-            mid = (lo[act] + hi[act]) // 2
-            ok = self.length[act] - self.arc_from_start(mid) >= need
-            lo[act] = np.where(ok, mid + 1, lo[act])
-            hi[act] = np.where(ok, hi[act], mid)
-        runs = np.column_stack([lo, counts - lo]).ravel()
+            c[up] += 1
+            c[down] -= 1
+        runs = np.column_stack([c, counts - c]).ravel()
         return np.repeat(np.tile(np.array([True, False]), counts.size), runs)
 
 
