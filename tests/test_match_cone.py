@@ -34,7 +34,10 @@ def _level(rng, lengths: list[int], d: int, turn: float) -> ArcIndex:
     p = np.concatenate(pts)
     m = p.shape[0]
     zeros = np.zeros(m)
-    level = Level(1.0, p, np.concatenate(prim), zeros, np.arange(m, dtype=float), zeros)
+    # unit steps: global arc = the point's number (start + n), arc left = count − 1 − n
+    start = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    level = Level(1.0, p, np.concatenate(prim), zeros, start, start.astype(float),
+                  np.array(lengths) - 1.0, 1.0)  # fmt: skip
     return ArcIndex(1.0, (level,), zeros, zeros)
 
 
