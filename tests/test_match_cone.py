@@ -138,3 +138,18 @@ def test_the_cone_keeps_every_window_below_its_gate(library, rotation):
     for cone in ((8, 4), (16, 8, 4)):
         np.testing.assert_array_equal(out[cone][0], out[()][0])
         np.testing.assert_allclose(out[cone][1], out[()][1], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+@pytest.mark.parametrize("stride", [8, 16])
+def test_coarse_bounds_are_those_of_every_window(library, rotation, stride):
+    # every 8th (16th) window's bound from strided slices of the sums: the bounds of those
+    # windows taken one by one
+    bank, path = library
+    piece = PathPiece(path, (len(path) - 1) * DT)
+    search = IndexSearch(bank, SearchOptions(rotation=rotation))
+    aq = search.arc_query(piece, 0.1, 0.3, 0.05)
+    whole = search.first_bound(aq)
+    for c0, c1 in ((0, aq.n_windows), (stride * 3, aq.n_windows - 5)):
+        coarse = search.first_bound(aq, (c0, c1), stride=stride)
+        np.testing.assert_allclose(coarse, whole[c0:c1:stride], rtol=1e-12, atol=1e-12)

@@ -45,7 +45,7 @@ __all__ = ["SIZES", "block_slopes", "cone_values", "alive_blocks", "alive", "scr
 # 6.5 % of the windows left for the fine bound; starting at 16 or 32 costs more in gathered
 # middle bounds than it saves in strided ones)
 SIZES = (8, 4)
-PROBE, PROBE_BLOCKS = 8, 2048  # :func:`_pays`: every PROBE-th block, ~PROBE_BLOCKS at most
+PROBE, PROBE_BLOCKS = 8, 512  # :func:`_pays`: every PROBE-th block, ~PROBE_BLOCKS at most
 
 
 def block_slopes(index: ArcIndex, jb: int, span: int, size: int) -> np.ndarray:
@@ -151,15 +151,32 @@ def _scale(search: IndexSearch, aq: ArcQuery) -> float:
 
 def _pays(search: IndexSearch, aq: ArcQuery, gates: Gates, size: int, scale: float) -> bool:
     """Whether the cone leaves at most ``search.gather_fraction`` of the blocks of ``size``
-    windows, estimated on every p-th block (p ≥ ``PROBE``, at most ~``PROBE_BLOCKS``
+    windows, estimated on every p-th block (p ≥ ``PROBE``, ~``PROBE_BLOCKS`` at most
     blocks: a strided bound costs a cache miss a row, and the estimate needs no more) from
     the bound at its first window alone (LB(c) − B·h against the largest gate)."""
     nb = -(-aq.n_windows // size)
     every = max(PROBE, nb // PROBE_BLOCKS)
     lb = search.first_bound(aq, (0, aq.n_windows), stride=every * size)
-    h = block_slopes(aq.index, aq.jb, aq.span, size)[::every][: lb.size]
+    if np.count_nonzero(lb < gates.top) > search.gather_fraction * lb.size:
+        return False  # too many below the gate already
+    h = _sample_slopes(aq.index, aq.jb, aq.span, size, np.arange(lb.size) * every)
     left = cone_values(lb, np.full(lb.size, -np.inf), h, size, scale) < gates.top
     return bool(np.count_nonzero(left) <= search.gather_fraction * lb.size)
+
+
+def _sample_slopes(index: ArcIndex, jb: int, span: int, size: int,
+                   blocks: np.ndarray) -> np.ndarray:  # fmt: skip
+    """:func:`block_slopes` of a few ``blocks`` alone, from their points (the probe of
+    :func:`_pays` builds no slopes for the whole level when the cone does not pay)."""
+    lv = index.levels[jb]
+    w = 1 + -(-(span - 1) // size)
+    at = np.minimum(blocks[:, None] * size + np.arange(w * size + 1), lv.prim.size - 1)
+    d = np.diff(lv.pts[at], axis=1)
+    d[lv.prim[at[:, 1:]] != lv.prim[at[:, :-1]]] = 0.0
+    box = d.max(axis=1) - d.min(axis=1)
+    h = np.minimum(0.5 * np.linalg.norm(box, axis=1), np.linalg.norm(d, axis=2).max(axis=1))
+    h[lv.prim[at[:, 0]] != lv.prim[at[:, -1]]] = np.inf
+    return h
 
 
 def alive_blocks(search: IndexSearch, aq: ArcQuery, gates: Gates,
