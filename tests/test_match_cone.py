@@ -110,10 +110,11 @@ def test_segmentations_with_and_without_the_cone_are_equal(library, rotation):
     opts = SearchOptions(rotation=rotation)
     runs = []
     # chunk 256: every query through the sample, the screen and the best-first batches;
-    # gather_fraction 1: the cone taken wherever it applies, whether it pays or not
+    # cone_min 0 and gather_fraction 1: the cone taken wherever it applies, whether it pays
+    # or not
     for cone, gather in (((), 0.25), ((8, 4), 0.25), ((8, 4), 1.0), ((16, 8, 4), 1.0)):
         search = _Counting(bank, opts, chunk=256, first_batch=64, cone=cone,
-                           gather_fraction=gather)  # fmt: skip
+                           gather_fraction=gather, cone_min=0)  # fmt: skip
         segments, _ = segment_with(search, bank, path, DT, 0.05, opts)
         runs.append((repr(segments), search.fine))
     assert all(r[0] == runs[0][0] for r in runs)
@@ -131,7 +132,7 @@ def test_the_cone_keeps_every_window_below_its_gate(library, rotation):
     out = {}
     for cone in ((), (8, 4), (16, 8, 4)):
         search = IndexSearch(bank, SearchOptions(rotation=rotation), chunk=256, cone=cone,
-                             gather_fraction=1.0)  # fmt: skip
+                             gather_fraction=1.0, cone_min=0)  # fmt: skip
         aq = search.arc_query(piece, 0.2, 0.26, 1.0)
         out[cone] = search._screen_shape(aq, Gates.of(aq, 1.0))
     assert out[()][0].size > 0

@@ -45,6 +45,9 @@ __all__ = ["SIZES", "block_slopes", "cone_values", "alive_blocks", "alive", "scr
 # 6.5 % of the windows left for the fine bound; starting at 16 or 32 costs more in gathered
 # middle bounds than it saves in strided ones)
 SIZES = (8, 4)
+# fewer windows a query: no cone (the probe's ~1.5 ms would cost more than the fine bound
+# the cone saves: the 14 bundled primitives' queries, ~20,000 windows, ran 10 % slower)
+MIN_WINDOWS = 1 << 16
 PROBE, PROBE_BLOCKS = 8, 512  # :func:`_pays`: every PROBE-th block, ~PROBE_BLOCKS at most
 
 
@@ -185,17 +188,17 @@ def alive_blocks(search: IndexSearch, aq: ArcQuery, gates: Gates,
     below its gate, by bisection: the cone (module notes) on blocks of ``sizes[0]``
     windows from strided bounds at every ``sizes[0]``-th window, then each surviving
     block halved with the bound at its middle window (gathered), down to ``sizes[-1]``.
-    None when a probe (:func:`_pays`, the bounds of a sample of the blocks) finds that more than
-    ``search.gather_fraction`` of the blocks would be left: the fine bound on the few left,
-    gathered, costs ~3.5 times as much a window as on all, sliced. Memoised on the query
-    (one set of gates a query)."""
+    None when a probe (:func:`_pays`, the bounds of a sample of blocks) finds that more than
+    ``search.gather_fraction`` of the blocks would be left (the fine bound on the few left,
+    gathered, costs ~3.5 times as much a window as on all, sliced), or the query has fewer
+    than ``search.cone_min`` windows. Memoised on the query (one set of gates a query)."""
     key = ("cone", sizes)
     if key in aq.memo:
         return aq.memo[key]
     n = aq.n_windows
     scale = _scale(search, aq)
     size = sizes[0]
-    if not _pays(search, aq, gates, size, scale):
+    if n < search.cone_min or not _pays(search, aq, gates, size, scale):
         aq.memo[key] = None
         return None
     nb = -(-n // size)

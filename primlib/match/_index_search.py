@@ -92,6 +92,7 @@ class IndexSearch:
     sample: int = 32
     gather_fraction: float = 0.25
     cone: tuple[int, ...] = _cone.SIZES  # block sizes of the cone rejection; (): none
+    cone_min: int = _cone.MIN_WINDOWS  # fewer windows a query: no cone
     stats: SearchStats = field(default_factory=SearchStats)
     name: ClassVar[str] = "index"
 
