@@ -38,11 +38,12 @@ class Level:
     2·step, ...`` from its start (``step = step0 · 2^shift``).
 
     The global arc coordinate of each point (:attr:`garc`) and the arc left to its
-    primitive's end (:attr:`left`) are not held (16 bytes a point, a third of a level):
-    both are a per-primitive constant plus or minus ``(n · 2^shift) · step0`` for the
-    point's number n within its primitive, computed on access with the very operations
-    that formed them (the same values, bit for bit); :meth:`fits` tells which points have
-    a given arc left from per-primitive counts.
+    primitive's end (:attr:`left`) are not held (16 bytes a point, beside the 36 of a 3-D
+    point's coordinates, primitive and sample index): both are a per-primitive constant
+    plus or minus ``(n · 2^shift) · step0`` for the point's number n within its
+    primitive, computed on access with the very operations that formed them (the same
+    values, bit for bit); :meth:`fits` tells which points have a given arc left from
+    per-primitive counts.
     """
 
     step: float
