@@ -24,7 +24,9 @@ own margins (:mod:`._bounds`).
 The slopes h of every block of a level are cached in the index's ``cache`` per (level, B,
 tiles a block reads) (:func:`block_slopes`), so queries on the same level share them; the
 strided bounds at every B-th window (:func:`alive_blocks`) are the one cost a query adds,
-and a probe at every 8·B-th window skips the cone where it would leave too many blocks.
+and a probe of ~512 blocks (:func:`_pays`) skips the cone where it would leave too many
+of them (the rotation-invariant bound is mostly too weak for it), as do queries of fewer
+than 65,536 windows.
 """
 
 from __future__ import annotations
