@@ -186,10 +186,10 @@ def _sample_slopes(index: ArcIndex, jb: int, span: int, size: int,
 
 def alive_blocks(search: IndexSearch, aq: ArcQuery, gates: Gates,
                  sizes: tuple[int, ...] = SIZES) -> np.ndarray | None:  # fmt: skip
-    """Mask of the blocks of ``sizes[-1]`` windows of the query that may hold a window
-    below its gate, by bisection: the cone (module notes) on blocks of ``sizes[0]``
-    windows from strided bounds at every ``sizes[0]``-th window, then each surviving
-    block halved with the bound at its middle window (gathered), down to ``sizes[-1]``.
+    """Mask of the windows of the query that may be below their gate, by bisection: the
+    cone (module notes) on blocks of ``sizes[0]`` windows from strided bounds at every
+    ``sizes[0]``-th window, then each surviving block halved with the bound at its middle
+    window (gathered), down to ``sizes[-1]``; in those left, each window's own cone.
     None when a probe (:func:`_pays`, the bounds of a sample of blocks) finds that more than
     ``search.gather_fraction`` of the blocks would be left (the fine bound on the few left,
     gathered, costs ~3.5 times as much a window as on all, sliced), or the query has fewer
@@ -226,11 +226,27 @@ def alive_blocks(search: IndexSearch, aq: ArcQuery, gates: Gates,
         h = block_slopes(aq.index, aq.jb, aq.span, size)[blk]
         g = _block_gates(gates, n, size)
         live = cone_values(la, lb, h, size, scale) < (g if np.ndim(g) == 0 else g[blk])
-        blk, la, lb = blk[live], la[live], lb[live]
-    out = np.zeros(-(-n // sizes[-1]), dtype=bool)
-    out[blk] = True
+        blk, la, lb, h = blk[live], la[live], lb[live], h[live]
+    out = np.zeros(n, dtype=bool)
+    out[_windows_left(gates, n, blk, la, lb, h, size, scale)] = True
     aq.memo[key] = out
     return out
+
+
+def _windows_left(gates: Gates, n: int, blk: np.ndarray, la: np.ndarray, lb: np.ndarray,
+                  h: np.ndarray, size: int, scale: float) -> np.ndarray:  # fmt: skip
+    """The windows of blocks ``blk`` of ``size`` (bounds ``la``, ``lb`` at their ends,
+    slopes ``h``) that each one's own cone, max(LB(c) − o·h, LB(c + B) − (B − o)·h) at
+    offset o, leaves below its gate (module notes; no bound computed)."""
+    o = np.arange(size)
+    ws = blk[:, None] * size + o
+    with np.errstate(invalid="ignore"):  # 0·inf, inf − inf: not covered (nan, not below)
+        v = np.maximum(la[:, None] - o * h[:, None], lb[:, None] - (size - o) * h[:, None])
+        v -= 1e-12 * (scale + np.abs(la) + np.where(np.isfinite(lb), np.abs(lb), 0.0))[:, None]
+    ws, v = ws.ravel(), np.where(np.isnan(v), -np.inf, v).ravel()
+    inside = ws < n
+    ws, v = ws[inside], v[inside]
+    return ws[v < gates.at(ws)]
 
 
 def alive(search: IndexSearch, aq: ArcQuery, gates: Gates, ws: np.ndarray,
@@ -241,7 +257,7 @@ def alive(search: IndexSearch, aq: ArcQuery, gates: Gates, ws: np.ndarray,
     if not sizes or ws.size * sizes[0] < aq.n_windows:
         return np.ones(ws.size, dtype=bool)
     cone = alive_blocks(search, aq, gates, sizes)
-    return np.ones(ws.size, dtype=bool) if cone is None else cone[ws // sizes[-1]]
+    return np.ones(ws.size, dtype=bool) if cone is None else cone[ws]
 
 
 def screen_shape(search: IndexSearch, aq: ArcQuery, gates: Gates,
@@ -259,8 +275,7 @@ def screen_shape(search: IndexSearch, aq: ArcQuery, gates: Gates,
         ok = gates.valid((c0, c1))
         search.stats.windows += int(np.count_nonzero(ok))
         if cone is not None:
-            size = sizes[-1]
-            ok &= np.repeat(cone[c0 // size : -(-c1 // size)], size)[: c1 - c0]
+            ok &= cone[c0:c1]
         if cone is None or np.count_nonzero(ok) > search.gather_fraction * (c1 - c0):
             lb1 = search.first_bound(aq, (c0, c1))
             ok &= lb1 < gates.at((c0, c1))
