@@ -1,0 +1,42 @@
+"""A fixed time scale: the exhaustive grid at that scale on small banks, the index on large
+ones (``_segment.seeder_for``: the grid resamples the whole bank for every piece, 10x the
+index's time on 1,000 primitives), and either finds a path composed at that scale."""
+
+import numpy as np
+import pytest
+from test_match_index_search import DT, _harmonics
+
+from primlib.match import BankIndex, kabsch, segment_path
+from primlib.match._grid import GridSearch
+from primlib.match._index_search import IndexSearch
+from primlib.match._segment import _GRID_BANK, resolve_options, seeder_for
+from primlib.store import Bank
+
+
+def _bank(k: int) -> tuple[BankIndex, list[np.ndarray]]:
+    prims = _harmonics(np.random.default_rng(5), k, 400)
+    return BankIndex(Bank.from_samples(prims, DT)), prims
+
+
+@pytest.mark.parametrize("k", [20, 90])
+def test_a_fixed_time_scale_searches_the_grid_only_on_a_small_bank(k):
+    bank, _ = _bank(k)
+    fixed = seeder_for(bank, resolve_options("full", (1.0, 1.0), None))
+    small = bank.points.shape[0] <= _GRID_BANK
+    assert small == (k == 20)  # 8,000 and 36,000 samples
+    assert isinstance(fixed, GridSearch if small else IndexSearch)
+    assert isinstance(seeder_for(bank, resolve_options("full", (0.5, 2.0), None)), IndexSearch)
+
+
+def test_a_path_composed_at_the_fixed_scale_is_found_on_a_large_bank():
+    bank, prims = _bank(90)
+    rng = np.random.default_rng(8)
+    pieces, used = [], [(7, 40, 200), (31, 100, 260), (64, 20, 180)]
+    for i, s0, s1 in used:
+        r = kabsch(np.eye(3), np.linalg.qr(rng.normal(size=(3, 3)))[0]).rotation
+        p = prims[i][s0:s1] @ np.asarray(r).T
+        pieces.append(p - p[0] + (pieces[-1][-1] if pieces else 0.0))
+    path = np.vstack([pieces[0]] + [p[1:] for p in pieces[1:]])
+    segs, _ = segment_path(bank, path, DT, 1e-3, time_scale=(1.0, 1.0))
+    assert [s.primitive for s in segs] == [bank.ids[i] for i, _, _ in used]
+    assert all(s.time_scale == pytest.approx(1.0) and s.rmsd < 1e-3 for s in segs)
