@@ -1,5 +1,6 @@
 """The time-uniform grid search: seeds for pieces too short in arc length to index, and for
-every piece when the time scale is fixed (one scale: the grid is then cheaper than the index).
+every piece when the time scale is fixed on a small bank (one scale: the grid is then
+cheaper than the index; on a large one it is not: ``_segment.seeder_for``).
 
 Query sampled at K = ``grid_points`` (16) uniform-time points. Every primitive; every
 duration D = k·(query duration) for k on a geometric grid over ``time_scale`` with ratio at

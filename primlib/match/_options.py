@@ -25,7 +25,7 @@ class SearchOptions:
         (default :data:`primlib.defaults.TIME_SCALE`).
     grid_points : int
         K of the time-uniform grid (used for pieces too short in arc length to index, and
-        for every piece at a fixed time scale).
+        for every piece at a fixed time scale on a small bank).
     scale_ratio : float
         Largest ratio between neighbouring time scales of that grid.
     seeds : int

@@ -36,11 +36,11 @@ matches" is monotone in b, and always a prefix that matches followed by one that
   end but proves nothing, and is followed by the longest prefix the match's own fit keeps
   provably within ε up to there (:meth:`_Segmenter.within`: at a join, the join itself).
   The search stops only when the prefix one step (≤ σ) longer fails both ways — the match
-  stretched and the whole search (seeds from :mod:`._index_search`, or the time-uniform
-  grid at a fixed time scale, refined) — so a prefix is never cut short because the match
-  followed so far left the path while another primitive goes on. On a novel path this
-  leaves about two whole searches per segment (the first match, the final failure) where
-  the bisection ran about eleven.
+  stretched and the whole search (seeds from :mod:`._index_search`, or on a small bank at a
+  fixed time scale from the time-uniform grid, refined) — so a prefix is never cut short
+  because the match followed so far left the path while another primitive goes on. On a
+  novel path this leaves about two whole searches per segment (the first match, the final
+  failure) where the bisection ran about eleven.
 
 A probe "matches" when some candidate, refined continuously (:mod:`._refine`), has Kabsch
 RMSD below ε against the piece, compared at the path's own samples in the piece (cuts lie on
