@@ -1,6 +1,7 @@
 """A fixed time scale: the exhaustive grid at that scale on small banks, the index on large
 ones (``_segment.seeder_for``: the grid resamples the whole bank for every piece, 10x the
-index's time on 1,000 primitives), and either finds a path composed at that scale."""
+index's time on 1,000 primitives), and either finds a path composed at that scale; the
+grid's cell slack from the steps of the window's own stretch."""
 
 import numpy as np
 import pytest
@@ -40,3 +41,23 @@ def test_a_path_composed_at_the_fixed_scale_is_found_on_a_large_bank():
     segs, _ = segment_path(bank, path, DT, 1e-3, time_scale=(1.0, 1.0))
     assert [s.primitive for s in segs] == [bank.ids[i] for i, _, _ in used]
     assert all(s.time_scale == pytest.approx(1.0) and s.rmsd < 1e-3 for s in segs)
+
+
+@pytest.mark.parametrize(("dur", "cell"), [(3.0, 0.4), (17.5, 2.2), (60.0, 0.05)])
+def test_the_grid_cell_slack_takes_the_largest_step_of_the_window_stretch(dur, cell):
+    # primitives that run slow, then fast: a slow window's slack is the slow steps'
+    rng = np.random.default_rng(3)
+    prims = []
+    for _ in range(3):
+        v = np.concatenate([np.full(150, 0.01), np.full(150, 1.0)])[:, None] * rng.normal(size=3)
+        prims.append(np.cumsum(v * rng.uniform(0.5, 1.5, (300, 1)), axis=0))
+    bank = BankIndex(Bank.from_samples(prims, DT))
+    got = GridSearch(bank, resolve_options("full", None, None))._local_steps(dur, cell)
+    pts, offsets = bank.points, bank.offsets
+    step = np.r_[np.linalg.norm(np.diff(pts, axis=0), axis=1), 0.0]
+    step[offsets[1:] - 1] = 0.0  # no step from one primitive to the next
+    lo, hi = int(np.ceil(cell)) + 1, int(np.ceil(dur)) + int(np.ceil(cell)) + 2
+    want = [step[max(j - lo, 0) : j + hi + 1].max() for j in range(pts.shape[0])]
+    np.testing.assert_allclose(got, want, rtol=1e-14)  # the steps' norms: an ulp apart
+    # far below the primitive's largest step where a window starts slow and stays slow
+    assert got[offsets[1] + 10] < 0.05 * bank.max_step()[1]  # reaches sample 75 at most
