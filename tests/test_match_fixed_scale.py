@@ -59,5 +59,8 @@ def test_the_grid_cell_slack_takes_the_largest_step_of_the_window_stretch(dur, c
     lo, hi = int(np.ceil(cell)) + 1, int(np.ceil(dur)) + int(np.ceil(cell)) + 2
     want = [step[max(j - lo, 0) : j + hi + 1].max() for j in range(pts.shape[0])]
     np.testing.assert_allclose(got, want, rtol=1e-14)  # the steps' norms: an ulp apart
+    # the bank's own steps: the arc samples' largest per primitive is theirs
+    np.testing.assert_allclose(bank.steps(), step, rtol=1e-14)
+    np.testing.assert_allclose(bank.max_step(), np.maximum.reduceat(step, offsets[:-1]), rtol=1e-14)
     # far below the primitive's largest step where a window starts slow and stays slow
     assert got[offsets[1] + 10] < 0.05 * bank.max_step()[1]  # reaches sample 75 at most

@@ -94,6 +94,7 @@ class BankIndex:
         self._arc_samples: ArcSamples | None = None
         self._samples_seconds = 0.0
         self._vmax: np.ndarray | None = None
+        self._steps: np.ndarray | None = None
         self._envelope: Envelope | None = None
         self.index_seconds = 0.0
 
@@ -192,15 +193,22 @@ class BankIndex:
             # the arc-length index measures the same steps (computed once for both)
             self._vmax = self.arc_samples().max_step
         if self._vmax is None:
+            self._vmax = np.maximum.reduceat(self.steps(), self.offsets[:-1])
+        return self._vmax
+
+    def steps(self) -> np.ndarray:
+        """Distance from each stored sample to the next one of its primitive, shape (N,)
+        (0 at a primitive's last sample), computed once."""
+        if self._steps is None:
             pts = self.points
-            step = np.empty(max(pts.shape[0] - 1, 0))
-            for c0 in range(0, step.size, 1 << 16):  # chunks: no (N, d) temporary
-                c1 = min(c0 + (1 << 16), step.size)
+            step = np.zeros(pts.shape[0])
+            for c0 in range(0, step.size - 1, 1 << 16):  # chunks: no (N, d) temporary
+                c1 = min(c0 + (1 << 16), step.size - 1)
                 dif = pts[c0 + 1 : c1 + 1] - pts[c0:c1]
                 step[c0:c1] = np.sqrt(np.einsum("ij,ij->i", dif, dif))
-            step[self.offsets[1:-1] - 1] = 0.0
-            self._vmax = np.maximum.reduceat(np.append(step, 0.0), self.offsets[:-1])
-        return self._vmax
+            step[self.offsets[1:] - 1] = 0.0
+            self._steps = step
+        return self._steps
 
     def envelope(self) -> Envelope:
         """Per-primitive bounding balls and boxes (:mod:`._reject`), built once."""

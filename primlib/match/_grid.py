@@ -66,7 +66,6 @@ class GridSearch:
     opts: SearchOptions
     stats: SearchStats = field(default_factory=SearchStats)
     name: ClassVar[str] = "grid"
-    _steps: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def _windows(self, path: PathPiece, a: float, b: float) -> Iterator[tuple]:
         """Yield, per time scale, the resampled bank and its valid windows."""
@@ -137,18 +136,12 @@ class GridSearch:
         """Per stored sample j, the largest step between consecutive samples of its
         primitive over [j − ⌈c⌉ − 1, j + ⌈D⌉ + ⌈c⌉ + 2] (c = ``cell``): every sample a grid
         point of a window starting in [j, j + 1) reaches, moved within its cell, with the
-        cubic's stencil. The steps across primitives count 0 (no window crosses them)."""
-        if self._steps is None:
-            pts, offsets = self.bank.points, self.bank.offsets
-            st = np.zeros(pts.shape[0])
-            dif = np.diff(pts, axis=0)
-            st[:-1] = np.sqrt(np.einsum("ij,ij->i", dif, dif))
-            st[offsets[1:] - 1] = 0.0  # a primitive's last sample: no step to the next one
-            self._steps = st
+        cubic's stencil (:meth:`BankIndex.steps`: the steps across primitives count 0)."""
         back = math.ceil(cell) + 1
         size = back + math.ceil(dur) + math.ceil(cell) + 3
-        # maximum_filter1d's window is [j − size//2 + origin', ...]: origin −(size//2 − back)
-        return maximum_filter1d(self._steps, size=size, origin=back - size // 2, mode="constant")
+        # the window [j − back, j − back + size − 1]: origin back − size // 2
+        steps = self.bank.steps()
+        return maximum_filter1d(steps, size=size, origin=back - size // 2, mode="constant")
 
     def _score(self, res, starts, q, qc, sq, k, rotation, gate) -> np.ndarray:
         """RMSD of every window that can pass ``gate``; +inf for the others, which the
