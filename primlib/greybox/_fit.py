@@ -419,12 +419,12 @@ def _without_bias(row: dict) -> dict:
     return dict(row, F=F)
 
 
-def _one_way_notes(machine: Machine, rows: list[dict], speed: np.ndarray, coef: np.ndarray):
+def _one_way_notes(machine: Machine, ways: list, coef: np.ndarray) -> list[str]:
     """A note for each axis with friction that moved one way in more than ``_ONE_WAY`` of
-    its moving rows (:func:`_without_bias`: fitted without a bias)."""
+    its moving rows (``ways``: :func:`_one_way` per axis; :func:`_without_bias`: fitted
+    without a bias)."""
     out = []
-    for i, row in enumerate(rows):
-        way = _one_way(row, speed[i]) if speed[i] > 0 else None
+    for i, way in enumerate(ways):
         if way is None or coef[i, _COULOMB] == 0.0:
             continue
         out.append(
@@ -479,18 +479,19 @@ def fit_greybox(machine: Machine, pairs: Sequence[Pair], *, linear: bool = True)
     hard, robust = np.zeros(d, bool), np.full((d, len(TERMS) + 1), np.nan)
     per_pair = np.full((len(given), d), np.nan)
     starts = np.concatenate([[0], np.cumsum([p.u.shape[0] for p in pairs])])
-    notes = []
+    notes, ways = [], [None] * d
     for i, row in enumerate(rows):
         if speed[i] <= 0:
             notes.append(f"axis {machine.axes[i]} did not move in the stored pairs: no terms")
             per_pair[used, i] = 0.0
             continue
+        ways[i] = _one_way(row, speed[i])
         coef[i], w[i], err, cv_lin[i], rms0[i], hard[i], robust[i] = _axis_choice(
-            row, linear, speed[i], one_way=_one_way(row, speed[i]) is not None
+            row, linear, speed[i], one_way=ways[i] is not None
         )
         cv[i] = _rms(err)
         per_pair[used, i] = np.sqrt(np.add.reduceat(err**2, starts[:-1]) / np.diff(starts))
-    notes += _one_way_notes(machine, rows, speed, coef)
+    notes += _one_way_notes(machine, ways, coef)
     n = sum(p.u.shape[0] for p in pairs)
     gb = GreyBox(machine, coef, w, speed, cv, cv_lin, rms0, n, tuple(notes), per_pair)
     gb = replace(gb, hard=hard, robust_coef=robust[:, :-1], robust_scale=robust[:, -1])
