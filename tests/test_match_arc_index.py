@@ -96,6 +96,19 @@ def test_sums_without_products_are_built_alone_and_cached():
     assert short[2] == full[2]
 
 
+def test_sums_with_the_squares_alone_serve_fewer_rows_and_give_way_to_all():
+    # rotation "none" builds the squares' rows alone; the d + 1 rows are sliced from them,
+    # and the full sums, once built, serve both
+    idx = _index().arc_index()
+    sq = idx.sums(2, 1, products="squares")
+    assert sq[0].shape[0] == 7 and idx.sums(2, 1, products="squares") is sq
+    short = idx.sums(2, 1, products=False)
+    assert np.shares_memory(short[0], sq[0]) and short[0].shape[0] == 4
+    full = idx.sums(2, 1)
+    np.testing.assert_array_equal(sq[0], full[0][:7])
+    assert np.shares_memory(idx.sums(2, 1, products="squares")[0], full[0])
+
+
 def test_fine_index_is_built_once_and_capped():
     bank = _index()
     fine = bank.fine_arc_index(2)

@@ -161,6 +161,11 @@ def test_prefix_sums_give_every_window_sum(dil):
     np.testing.assert_array_equal(short, psum[:4])
     np.testing.assert_array_equal(smax, pmax[:4])
     assert sradius == radius
+    # the squares alone (rotation "none"'s per-axis bound): the first 7 rows, the same values
+    sq, sqmax, sqradius = strided_prefix_sums(pts, dil, products="squares")
+    np.testing.assert_array_equal(sq, psum[:7])
+    np.testing.assert_array_equal(sqmax, pmax[:7])
+    assert sqradius == radius
 
 
 @settings(max_examples=40, deadline=None)
@@ -282,7 +287,7 @@ def _one_pass_prefix_sums(pts, dil, products):
     """strided_prefix_sums as one pass: every row filled, then np.cumsum over all of it."""
     m, d = pts.shape
     pairs = [(a, a) for a in range(d)] + [(a, b) for a in range(d) for b in range(a + 1, d)]
-    pairs = pairs if products else []
+    pairs = pairs[:d] if products == "squares" else pairs if products else []
     buf = np.zeros((d + 1 + len(pairs), -(-m // dil) + 1, dil))
     flat = buf.reshape(buf.shape[0], -1)
     flat[:d, dil : dil + m] = pts.T
@@ -303,7 +308,7 @@ def test_prefix_sums_by_spans_equal_one_pass_to_the_last_bit(dil, m):
     rng = np.random.default_rng(m + dil)
     pts = rng.normal(size=(m, 3)) * 10.0 ** rng.uniform(-3, 3, size=(m, 1))
     pts[rng.random(m) < 0.05] = -0.0
-    for products in (False, True):
+    for products in (False, "squares", True):
         got = strided_prefix_sums(pts, dil, products)
         want = _one_pass_prefix_sums(pts, dil, products)
         np.testing.assert_array_equal(got[0], want[0])

@@ -45,6 +45,8 @@ from primlib.match._speed_bounds import speed_bound, speed_groups, speed_screen,
 __all__ = [
     "QueryMoments",
     "strided_prefix_sums",
+    "product_pairs",
+    "products_for",
     "half_window_bound",
     "half_window_bound_fixed",
     "half_bound_margin",
@@ -69,13 +71,30 @@ def _pairs(d: int) -> list[tuple[int, int]]:
     return [(a, a) for a in range(d)] + [(a, b) for a in range(d) for b in range(a + 1, d)]
 
 
-def strided_prefix_sums(pts: np.ndarray, dil: int,
-                        products: bool = True) -> tuple[np.ndarray, np.ndarray, float]:  # fmt: skip
+def product_pairs(d: int, products: bool | str) -> list[tuple[int, int]]:
+    """The products' rows of :func:`strided_prefix_sums` for ``products``: all of
+    :func:`_pairs` (True), the d squares alone ("squares": the first d of them), none."""
+    if products == "squares":
+        return _pairs(d)[:d]
+    return _pairs(d) if products else []
+
+
+def products_for(rotation: str) -> bool | str:
+    """The products' rows a rotation family's bounds read from the prefix sums: none for
+    the rotation-invariant bound (``"full"``), the squares for the per-axis bound of
+    ``"none"``, all of them for ``"z"`` (its principal-value bound reads the scatter)."""
+    return False if rotation == "full" else "squares" if rotation == "none" else True
+
+
+def strided_prefix_sums(
+    pts: np.ndarray, dil: int, products: bool | str = True
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Prefix sums for the windows {m + i·dil, i < n}, m = 0, 1, ... of a point sequence.
 
     Rows: the d coordinates, |p|², then (with ``products``) the products p_a·p_b (a ≤ b;
-    the squares p_a² first, then a < b in order), so the sums, the centroid, the radius of
-    gyration and the scatter matrix of any window come from two columns:
+    the squares p_a² first, then a < b in order; ``products="squares"``: the squares
+    alone), so the sums, the centroid, the radius of gyration and the scatter matrix of any
+    window come from two columns:
     Σ_{i<n} f(p_{m+i·dil}) = P[:, m + n·dil] − P[:, m] (P[:, m] sums the earlier points of
     m's phase m mod dil).
 
@@ -84,15 +103,17 @@ def strided_prefix_sums(pts: np.ndarray, dil: int,
     pts : array, shape (M, d)
     dil : int
         Stride between a window's points, >= 1.
-    products : bool
-        Also the products' rows (the per-axis bounds of :func:`half_window_bound_fixed`
-        and :func:`principal_bound` need them; :func:`half_window_bound` does not).
+    products : bool or "squares"
+        Also the products' rows (:func:`principal_bound` needs them all, the per-axis
+        bound of :func:`half_window_bound_fixed` the squares alone, :func:`half_window_bound`
+        none). Each row holds the same values whichever others are built (each is filled
+        and summed on its own: :func:`_running_sums`).
 
     Returns
     -------
     P : array, shape (c, L)
-        c = d + 1 + d(d + 1)/2 rows (d + 1 without ``products``), L = (⌈M/dil⌉ + 1)·dil
-        columns.
+        c = d + 1 + d(d + 1)/2 rows (d + 1 without ``products``, 2d + 1 with the squares
+        alone), L = (⌈M/dil⌉ + 1)·dil columns.
     pmax : array, shape (c,)
         max |P| per row (for the round-off margins).
     radius : float
@@ -103,7 +124,7 @@ def strided_prefix_sums(pts: np.ndarray, dil: int,
     """
     m, d = pts.shape
     rows = -(-m // dil)
-    pairs = _pairs(d) if products else []
+    pairs = product_pairs(d, products)
     c = d + 1 + len(pairs)
     buf = np.zeros((c, rows + 1, dil))
     flat = buf.reshape(c, -1)

@@ -35,6 +35,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from primlib.match._bounds import products_for
+
 if TYPE_CHECKING:
     from primlib.match._arc_index import ArcIndex, ArcQuery
     from primlib.match._gates import Gates
@@ -150,7 +152,7 @@ def _block_gates(gates: Gates, n: int, size: int) -> np.ndarray | float:
 
 def _scale(search: IndexSearch, aq: ArcQuery) -> float:
     """max |p| of the level plus the query's radius of gyration (:func:`cone_values`)."""
-    radius = aq.index.sums(aq.jb, aq.dil, products=search.opts.rotation != "full")[2]
+    radius = aq.index.sums(aq.jb, aq.dil, products=products_for(search.opts.rotation))[2]
     return radius + aq.moments.gyration
 
 
