@@ -13,5 +13,16 @@ as far as a transform preserves it.
 from primlib.greybox._features import LINEAR, NONLINEAR, POSITION, TERMS
 from primlib.greybox._fit import fit_greybox
 from primlib.greybox._model import GreyBox, Pair
+from primlib.greybox._polish import forward_model, polish
 
-__all__ = ["GreyBox", "LINEAR", "NONLINEAR", "POSITION", "Pair", "TERMS", "fit_greybox"]
+__all__ = [
+    "GreyBox",
+    "LINEAR",
+    "NONLINEAR",
+    "POSITION",
+    "Pair",
+    "TERMS",
+    "fit_greybox",
+    "forward_model",
+    "polish",
+]
