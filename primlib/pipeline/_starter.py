@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import NoMatchError
-from primlib.greybox import GreyBox, fit_greybox
+from primlib.greybox import GreyBox, fit_greybox, polish
 from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
 from primlib.pipeline._greywarm import (
@@ -199,8 +199,9 @@ class WarmStarter:
         m = self.store.machine(machine)
         origin = check_origin("origin", origin, m.axes)
         _, gb, _ = self._models(m, self.store.bank(machine), [], True, True)
-        pts = traj.sample(m.dt)
-        return gb.inverse(pts - pts[0], origin), gb
+        ref = traj.sample(m.dt)
+        ref = ref - ref[0]
+        return polish(gb, ref, gb.inverse(ref, origin), origin)[0], gb
 
     # ------------------------------------------------------------------ warm start
     def warm_start(
@@ -382,7 +383,7 @@ def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
     (``pts``: the path's samples in the frame it was matched in)."""
     ref = pts - pts[0]
     u_lin, lin, non = gb.terms(ref, origin)
-    model_u = u_lin + lin + non
+    model_u, (before, after) = polish(gb, ref, u_lin + lin + non, origin)
     u, choices, predicted, shares = choose_per_segment(
         gb, bank, res.segments, res.sample_segment, res.u + non, model_u,
         gb.inverse_gap(ref, u_lin), ripple_shifts(gb, bank, res.segments, origin, pts[0]),
@@ -393,6 +394,11 @@ def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
         for c, p, w, seg in zip(choices, predicted, shares, res.segments, strict=True)
     ]
     notes = (*base.notes, f"grey-box model of the machine: {gb.describe()}", *gb.notes)
+    if np.isfinite(before):
+        notes += (
+            f"model-only input corrected on the grey-box model run as a machine (stick and "
+            f"reversals within a sample): its error on the model {before:.3g} -> {after:.3g}",
+        )
     return replace(
         base,
         u=u,
