@@ -8,7 +8,7 @@ from test_match_index_search import DT, _harmonics
 
 from primlib.match import BankIndex, SearchOptions, kabsch
 from primlib.match._arc_index import ArcIndex, Level
-from primlib.match._cone import block_slopes, cone_values
+from primlib.match._cone import block_slopes, cone_values, not_in, shape_first
 from primlib.match._gates import Gates
 from primlib.match._index_search import IndexSearch
 from primlib.match._options import PathPiece
@@ -154,3 +154,30 @@ def test_coarse_bounds_are_those_of_every_window(library, rotation, stride):
     for c0, c1 in ((0, aq.n_windows), (stride * 3, aq.n_windows - 5)):
         coarse = search.first_bound(aq, (c0, c1), stride=stride)
         np.testing.assert_allclose(coarse, whole[c0:c1:stride], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("quantile", [0.05, 0.3, 0.9])
+def test_shape_first_keeps_the_windows_of_the_speed_screen_first(library, quantile):
+    # rotation "none" takes the shape bound first once the pool has a threshold: the same
+    # windows, speed and combined bounds as the speed and time-scale screen first, then the
+    # speed bound, then the shape bound (the cone off, which drops windows either way)
+    bank, path = library
+    piece = PathPiece(path, (len(path) - 1) * DT)
+    search = IndexSearch(bank, SearchOptions(rotation="none"), cone=())
+    aq = search.arc_query(piece, 0.2, 0.26, 1.0)
+    gates = Gates.of(aq, 1.0)
+    n = aq.n_windows
+    head = np.arange(0, n, 32)
+    ws = np.flatnonzero(gates.valid((0, n)))
+    lb = search.first_bound(aq, ws)
+    tau = float(np.quantile(lb[lb > 0], quantile))
+    rest, lbs, lbc = shape_first(search, aq, gates, tau, head)
+    want = search._screen(aq, gates, tau, share=1.0)
+    want = want[not_in(want, head, n)]
+    s4, lb1 = search.speed_bound(aq, want), search.first_bound(aq, want)
+    c = np.hypot(np.maximum(lb1, 0.0), np.maximum(s4, 0.0))
+    keep = (s4 < tau) & (lb1 < gates.at(want)) & (c < tau)
+    assert 0 < keep.sum() < want.size
+    np.testing.assert_array_equal(rest, want[keep])
+    np.testing.assert_array_equal(lbs, s4[keep])
+    np.testing.assert_allclose(lbc, c[keep], rtol=1e-12, atol=1e-12)

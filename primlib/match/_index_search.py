@@ -67,6 +67,7 @@ from primlib.match._bounds import (
     speed_bound,
     speed_screen,
 )
+from primlib.match._cone import not_in as _not_in
 from primlib.match._gates import Gates as _Gates
 from primlib.match._grid import GridSearch
 from primlib.match._kabsch import rmsd_from_moments
@@ -358,7 +359,8 @@ class IndexSearch:
         speed bound fills the pool, so its threshold falls before any window is bounded;
         one pass over every window with the time-scale test (:meth:`in_range`, which any
         window scored must pass) and a cheap speed bound (2 groups) against it; on what
-        passes, the tighter speed bound and the half-window shape bound, and in increasing
+        passes, the tighter speed bound and the half-window shape bound (for ``"none"`` the
+        shape bound first, :func:`._cone.shape_first`: it sifts far more), and in increasing
         order of the two combined (ℓ·τ and shape add in quadrature in the score) the
         principal-value bound and exact scores, until the next bound reaches the pool's
         threshold (:meth:`_drain`). A window is left out only when its time scale is out of
@@ -381,7 +383,9 @@ class IndexSearch:
             head, lbs = head[pick], lbs[pick]  # head is increasing: so is head[pick]
         self._batch(aq, pool, head, lbs, None, gates.at(head))
         known = math.isfinite(pool.combined)
-        if known:
+        if known and self.opts.rotation == "none":  # the shape bound sifts: it first
+            rest, lbs, lbc = _cone.shape_first(self, aq, gates, pool.combined, head)
+        elif known:
             rest = self._screen(aq, gates, pool.combined, share)
             rest = rest[_not_in(rest, head, aq.n_windows)]
             if rest.size == 0:
@@ -517,10 +521,8 @@ class IndexSearch:
         return rest[keep], lb1[keep]
 
     def _screen_shape(self, aq: ArcQuery, gates: _Gates) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`_screen` with no threshold, the shape bound against the gate first, by
-        blocks of windows: the time-scale test then reads the few below the gate, and no
-        index array of every window is formed; the cone (:mod:`._cone`) drops most blocks
-        before the shape bound is taken on their windows."""
+        """:meth:`_screen` with no threshold, the shape bound against the gate first
+        (:func:`._cone.screen_shape`)."""
         return _cone.screen_shape(self, aq, gates, self.cone)
 
     def _batch(self, aq: ArcQuery, pool: CandidatePool, ws: np.ndarray, lbs: np.ndarray,
@@ -587,14 +589,3 @@ def _blocks(n: int, size: int = 1 << 16):
     """The ranges (c0, c1) of n windows taken ``size`` at a time: 65,536 took 20 % less
     time than 16,384 (per-call overhead) or 262,144 (temporaries out of cache)."""
     return ((c0, min(c0 + size, n)) for c0 in range(0, n, size))
-
-
-def _not_in(rest: np.ndarray, head: np.ndarray, n: int) -> np.ndarray:
-    """Mask of the values of ``rest`` not in ``head`` (integers in [0, n), ``head`` increasing):
-    by binary search in ``head`` for fewer than n/16, else from n flags (np.isin sorts)."""
-    if rest.size * 16 < n and head.size:
-        at = np.minimum(np.searchsorted(head, rest), head.size - 1)
-        return head[at] != rest
-    seen = np.zeros(n, dtype=bool)
-    seen[head] = True
-    return ~seen[rest]
