@@ -284,18 +284,23 @@ def screen_shape(search: IndexSearch, aq: ArcQuery, gates: Gates, sizes: tuple[i
             ok &= cone[c0:c1]
         if cone is None or np.count_nonzero(ok) > search.gather_fraction * (c1 - c0):
             lb1 = search.first_bound(aq, (c0, c1))
-            ok &= (lb1 < gates.at((c0, c1))) & (lb1 < tau)
+            ok &= lb1 < _below(gates.at((c0, c1)), tau)
             at = np.flatnonzero(ok)
             ws, lb1 = c0 + at, lb1[at]
         else:
             ws = c0 + np.flatnonzero(ok)
             lb1 = search.first_bound(aq, ws)
-            keep = (lb1 < gates.at(ws)) & (lb1 < tau)
+            keep = lb1 < _below(gates.at(ws), tau)
             ws, lb1 = ws[keep], lb1[keep]
         inside = search.in_range(aq, ws, screen=True)[0]
         out.append(ws[inside])
         bounds.append(lb1[inside])
     return np.concatenate(out), np.concatenate(bounds)
+
+
+def _below(gate: np.ndarray | float, tau: float) -> np.ndarray | float:
+    """The gates lowered to ``tau`` (as they are without one: no pass over the windows)."""
+    return gate if tau == math.inf else np.minimum(gate, tau)
 
 
 def shape_first(search: IndexSearch, aq: ArcQuery, gates: Gates, tau: float,
