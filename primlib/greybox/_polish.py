@@ -54,34 +54,29 @@ if TYPE_CHECKING:
 
 __all__ = ["forward_model", "polish", "POLISH_STEPS", "MAX_SAMPLES"]
 
-POLISH_STEPS = (
-    8  # corrections at most (module notes: on the model's own machine 2-8 reach rounding)
-)
+# corrections at most (module notes: on the model's own machine two to four reach rounding)
+POLISH_STEPS = 8
 # the whole polish costs ~100 us a path sample (runs on the model and inverses: 2,000 samples
 # 0.28 s, 20,000 1.85 s, 100,000 10.6 s); longer paths keep the analytic input
 MAX_SAMPLES = 100_000
 _GIVE_UP = 2  # corrections in a row that did not lower the error on the model: stop
 _LIN = [TERMS.index(t) for t in LINEAR]
-_C, _S, _B = (TERMS.index(t) for t in ("coulomb", "stribeck", "bias"))
+_C, _S = TERMS.index("coulomb"), TERMS.index("stribeck")
 _RS, _RC = TERMS.index("ripple_sin"), TERMS.index("ripple_cos")
 
 
-def _simulated_axes(gb: GreyBox) -> list[int]:
-    """The axes whose friction the model run simulates: hard sign and a Coulomb level > 0."""
-    return [
-        i for i in range(gb.machine.dim) if gb._hard(i) and gb.speed[i] > 0 and gb.coef[i, _C] > 0
-    ]
-
-
-def _simulated_coef(gb: GreyBox, i: int) -> np.ndarray:
-    """Axis i's coefficients of the terms the model run simulates as forces: Coulomb, a
-    Stribeck term that raises the static level (one that lowers it, which the run's
-    friction law cannot hold, stays analytic), ripple."""
-    c = np.zeros(len(TERMS))
-    if i in _simulated_axes(gb):
-        c[[_C, _RS, _RC]] = gb.coef[i, [_C, _RS, _RC]]
-        c[_S] = max(float(gb.coef[i, _S]), 0.0)
-    return c
+def _simulated(gb: GreyBox) -> tuple[list[int], np.ndarray]:
+    """The axes whose friction the model run simulates (hard sign, a Coulomb level > 0), and
+    per axis the coefficients of the terms it simulates as forces, shape (d, 8): Coulomb, a
+    Stribeck term that raises the static level (one that lowers it, which the run's friction
+    law cannot hold, stays analytic), ripple; zero elsewhere."""
+    d = gb.machine.dim
+    axes = [i for i in range(d) if gb._hard(i) and gb.speed[i] > 0 and gb.coef[i, _C] > 0]
+    coef = np.zeros((d, len(TERMS)))
+    for i in axes:
+        coef[i, [_C, _RS, _RC]] = gb.coef[i, [_C, _RS, _RC]]
+        coef[i, _S] = max(float(gb.coef[i, _S]), 0.0)
+    return axes, coef
 
 
 def forward_model(gb: GreyBox, ripple: bool = True) -> RealisticMachine | None:
@@ -97,7 +92,7 @@ def forward_model(gb: GreyBox, ripple: bool = True) -> RealisticMachine | None:
     m = gb.machine
     if m.feedback or np.any(gb.coef[:, _LIN] != 0):
         return None
-    axes = _simulated_axes(gb)
+    axes, coef = _simulated(gb)
     plants = m.plants
     # friction acts as a force: a plant of relative degree < 2 has no velocity it could see
     if not axes or any(len(plants[m.axes[i]][1]) - len(plants[m.axes[i]][0]) < 2 for i in axes):
@@ -107,15 +102,15 @@ def forward_model(gb: GreyBox, ripple: bool = True) -> RealisticMachine | None:
         if i not in axes:
             deps[a] = {}
             continue
-        c, s = float(gb.coef[i, _C]), max(float(gb.coef[i, _S]), 0.0)
+        c, s = float(coef[i, _C]), float(coef[i, _S])
         dep = {"coulomb": c, "static_ratio": 1.0 + s / c}
         if s > 0:
             dep["stribeck_velocity"] = 2.0 * STRIBECK_FRACTION * gb.speed[i] / math.sqrt(math.pi)
-        amp = math.hypot(gb.coef[i, _RS], gb.coef[i, _RC])
+        amp = math.hypot(coef[i, _RS], coef[i, _RC])
         if ripple and gb.w[i] > 0 and amp > 0:
             dep["ripple"] = amp
             dep["ripple_pitch"] = 2.0 * math.pi / float(gb.w[i])
-            dep["ripple_phase"] = math.atan2(gb.coef[i, _RC], gb.coef[i, _RS])
+            dep["ripple_phase"] = math.atan2(coef[i, _RC], coef[i, _RS])
         deps[a] = dep
     return RealisticMachine(m.name, m.dt, m.axes, plants, None, deps)
 
@@ -141,12 +136,11 @@ def polish(
     if model is None or steps <= 0 or not 3 <= ref.shape[0] <= MAX_SAMPLES:
         return u, (math.nan, math.nan)
     # what the run on the model does not simulate is taken out as the analytic input put it
-    # in: the bias, a Stribeck term below the Coulomb level, every term of the other axes
-    sim = dataclasses.replace(
-        gb, coef=np.stack([_simulated_coef(gb, i) for i in range(gb.machine.dim)])
-    )
-    _, _, non = gb.terms(ref, origin)
-    fixed = non - sim.terms(ref, origin)[2]
+    # in: the bias, a Stribeck term below the Coulomb level, every term of the other axes --
+    # the nonlinear terms of the coefficients less the simulated ones (the terms are linear
+    # in them)
+    rest = dataclasses.replace(gb, coef=gb.coef - _simulated(gb)[1])
+    fixed = rest.terms(ref, origin)[2]
     start = np.zeros(ref.shape[1]) if origin is None else np.asarray(origin, dtype=float)
 
     def error(x: np.ndarray) -> tuple[np.ndarray, float]:
@@ -155,7 +149,7 @@ def polish(
 
     e, r0 = error(u)
     best, r_best, gain, failed = u, r0, 1.0, 0
-    done = 1e-9 * float(np.max(np.abs(ref))) if ref.size else 0.0  # rounding: nothing left
+    done = 1e-9 * float(np.max(np.abs(ref)))  # rounding: nothing left
     for _ in range(steps):
         if r_best <= done or failed >= _GIVE_UP:
             break
