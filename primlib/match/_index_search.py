@@ -383,7 +383,9 @@ class IndexSearch:
             head, lbs = head[pick], lbs[pick]  # head is increasing: so is head[pick]
         self._batch(aq, pool, head, lbs, None, gates.at(head))
         known = math.isfinite(pool.combined)
-        if known and self.opts.rotation == "none":  # the shape bound sifts: it first
+        if known and self.opts.rotation == "none" and share > self.gather_fraction:
+            # the shape bound sifts: it first (unless the time-scale test sifts more: a slow
+            # piece, most windows far too short in time, then takes the screen below)
             rest, lbs, lbc = _cone.shape_first(self, aq, gates, pool.combined, head)
         elif known:
             rest = self._screen(aq, gates, pool.combined, share)
