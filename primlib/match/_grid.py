@@ -28,7 +28,7 @@ from scipy.ndimage import maximum_filter1d
 
 from primlib.match._bank import BankIndex
 from primlib.match._bounds import gyration_bound
-from primlib.match._interp import cubic_at
+from primlib.match._interp import coefficients
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import suppress
@@ -40,6 +40,23 @@ def scale_grid(lo: float, hi: float, ratio: float) -> np.ndarray:
     """Geometric grid over [lo, hi] with neighbouring ratio at most ``ratio``."""
     n = 1 + max(1, math.ceil(math.log(hi / lo) / math.log(ratio) - 1e-9)) if hi > lo else 1
     return np.geomspace(lo, hi, n) if n > 1 else np.array([lo])
+
+
+def _coefficient_table(points: np.ndarray, offsets: np.ndarray) -> tuple:
+    """Every interval's first sample p1 and Catmull-Rom coefficients (c1, c2, c3) with the
+    neighbours :func:`._interp.cubic_at` takes (clamped at the curve's ends), one row per
+    interval, curve by curve (rows of (p1, c1, c2, c3), shape (intervals, 4, d)), and each
+    curve's first row: (first, table)."""
+    counts = np.diff(offsets)
+    spans = np.maximum(counts - 1, 0)
+    first = np.concatenate([[0], np.cumsum(spans)])[:-1]
+    curve = np.repeat(np.arange(counts.size), spans)
+    i = np.arange(int(spans.sum())) - np.repeat(first, spans)
+    start = offsets[:-1][curve]
+    i1 = start + i
+    i0, i3 = start + np.maximum(i - 1, 0), start + np.minimum(i + 2, counts[curve] - 1)
+    p0, p1, p2, p3 = (points.take(j, axis=0) for j in (i0, i1, i1 + 1, i3))
+    return first, np.stack([p1, *coefficients(p0, p1, p2, p3)], axis=1)
 
 
 def _cumsums(x: np.ndarray):
@@ -66,6 +83,7 @@ class GridSearch:
     opts: SearchOptions
     stats: SearchStats = field(default_factory=SearchStats)
     name: ClassVar[str] = "grid"
+    _table: tuple | None = field(default=None, init=False, repr=False)
 
     def _windows(self, path: PathPiece, a: float, b: float) -> Iterator[tuple]:
         """Yield, per time scale, the resampled bank and its valid windows."""
@@ -83,12 +101,34 @@ class GridSearch:
             base = np.concatenate([[0], np.cumsum(n_res)])
             prim = np.repeat(ok, n_res)
             local = np.arange(base[-1]) - np.repeat(base[:-1], n_res)
-            res = cubic_at(bank.points, bank.offsets[prim], counts[prim], local * h)
+            res = self._resample(prim, local * h)
             first = np.concatenate([[0], np.cumsum(n_start)])
             s_local = np.arange(first[-1]) - np.repeat(first[:-1], n_start)
             starts = np.repeat(base[:-1], n_start) + s_local
             s_prim = np.repeat(ok, n_start)
             yield res, starts, s_prim, s_local * h, dur
+
+    def _resample(self, prim: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """:func:`._interp.cubic_at` of primitives ``prim`` at sample indices ``x``, from a
+        table of every interval's Catmull-Rom coefficients (:func:`_coefficient_table`,
+        built on the first call, kept): no neighbour gathers and no coefficient arithmetic
+        per point (each scale resamples the whole bank), the same numbers to the last bit."""
+        if self._table is None:
+            self._table = _coefficient_table(self.bank.points, self.bank.offsets)
+        first, table = self._table
+        count = self.bank.counts[prim]
+        x = np.clip(x, 0.0, count - 1)
+        i = np.minimum(np.floor(x).astype(np.int64), count - 2)
+        f = (x - i)[:, None]
+        rows = table.take(first[prim] + i, axis=0)  # (m, 4, d): one gather
+        # p1 + 0.5 f (c1 + f (c2 + f c3)), its operations in their order, in place
+        val = rows[:, 3] * f
+        val += rows[:, 2]
+        val *= f
+        val += rows[:, 1]
+        val *= 0.5 * f
+        val += rows[:, 0]
+        return val
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
         """Best distinct grid candidates that a continuous move within their cell could
