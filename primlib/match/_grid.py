@@ -68,11 +68,18 @@ def _cumsums(x: np.ndarray):
 
 
 def _window_moments(cs: np.ndarray, cs2: np.ndarray, starts: np.ndarray, k: int, per_axis: bool):
-    """Σ|p − p̄|² of the windows [m, m + k) from cumulative sums (per axis if asked)."""
-    sx = cs[starts + k] - cs[starts]
-    sxx = cs2[starts + k] - cs2[starts]
-    sp = sxx - sx * sx / k
-    return sp if per_axis else sp.sum(axis=1)
+    """Σ|p − p̄|² of the windows [m, m + k) from cumulative sums (per axis if asked).
+
+    Taken at every position with slices, then gathered at ``starts`` (once, after the sum
+    over the axes): the same operations on the same numbers as on the gathered sums, four
+    (m, d) gathers fewer (the windows are nearly every position: 37 M a query on 1,000
+    primitives, a third of the grid's time)."""
+    sx = cs[k:] - cs[:-k]
+    sp = cs2[k:] - cs2[:-k]
+    sx *= sx
+    sx /= k
+    sp -= sx  # sxx − sx·sx / k, in place
+    return sp[starts] if per_axis else sp.sum(axis=1)[starts]
 
 
 @dataclass
