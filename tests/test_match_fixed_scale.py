@@ -64,3 +64,25 @@ def test_the_grid_cell_slack_takes_the_largest_step_of_the_window_stretch(dur, c
     np.testing.assert_allclose(bank.max_step(), np.maximum.reduceat(step, offsets[:-1]), rtol=1e-14)
     # far below the primitive's largest step where a window starts slow and stays slow
     assert got[offsets[1] + 10] < 0.05 * bank.max_step()[1]  # reaches sample 75 at most
+
+
+def test_the_grid_resamples_and_takes_moments_as_cubic_at_and_the_gathered_sums_do():
+    # the coefficient table and the moments by slices: the same numbers to the last bit
+    from primlib.match._grid import _cumsums, _window_moments
+    from primlib.match._interp import cubic_at
+
+    bank, _ = _bank(20)
+    grid = GridSearch(bank, resolve_options("none", None, None))
+    rng = np.random.default_rng(11)
+    prim = rng.integers(0, bank.k, 5000)
+    counts = bank.counts[prim]
+    x = rng.uniform(-0.5, 1.2, prim.size) * (counts - 1)
+    x[:50], x[50:100] = counts[:50] - 1.0, np.floor(x[50:100])  # the ends; on samples
+    want = cubic_at(bank.points, bank.offsets[prim], counts, x)
+    np.testing.assert_array_equal(grid._resample(prim, x), want)
+    cs, cs2 = _cumsums(want)
+    starts, k = np.sort(rng.choice(want.shape[0] - 16, 900, replace=False)), 16
+    sx, sxx = cs[starts + k] - cs[starts], cs2[starts + k] - cs2[starts]
+    sp = sxx - sx * sx / k
+    np.testing.assert_array_equal(_window_moments(cs, cs2, starts, k, True), sp)
+    np.testing.assert_array_equal(_window_moments(cs, cs2, starts, k, False), sp.sum(axis=1))
