@@ -307,3 +307,23 @@ def test_speed_of_ten_thousand_samples_on_three_axes():
     t0 = time.process_time()
     y = rm.simulate(u, start=[1.0, 2.0, 3.0], trial=2, noise=True)
     assert time.process_time() - t0 < 4.0 and np.all(np.isfinite(y))
+
+
+@pytest.mark.parametrize("ripple", [0.0, 0.1])
+def test_the_written_out_three_state_axis_is_the_general_loop(ripple):
+    # an axis with a lag has three states: its written-out step is the general loop's
+    # arithmetic in the same order, so the same floats through stick, slip and reversals
+    from primlib.plant._realistic_loop import _stepper, loop_kernel
+
+    plants = {a: (n, np.convolve(d, [0.012, 1.0])) for a, (n, d) in XYZ.plants.items()}
+    rm = RealisticMachine.from_machine(
+        Machine("xyz", XYZ.dt, XYZ.axes, plants), coulomb=0.3, ripple=ripple, ripple_pitch=5.0
+    )
+    kern = loop_kernel("x", *rm.plants["x"], rm.departures["x"], rm.dt, rm.substeps)
+    assert len(kern[1]) == 3
+    fast, general = _stepper(kern, 2.0), _stepper(kern, 2.0, general=True)
+    t = np.arange(600) * rm.dt
+    states = [((0.0, 0.0, 0.0), 0.0), ([0.0, 0.0, 0.0], 0.0)]
+    for cmd in 0.8 * np.sin(2 * np.pi * 1.3 * t):  # sticks at each reversal
+        states = [fast(*states[0], cmd), general(*states[1], cmd)]
+        assert tuple(states[0][0]) == tuple(states[1][0]) and states[0][1] == states[1][1]
