@@ -117,19 +117,26 @@ def _friction(v: float, v_free: float, vf: float, fr: tuple) -> tuple[float, flo
     return (v_free - v_new) / vf, v_new
 
 
-def _stepper(kern: tuple, start: float, general: bool = False):
+def _stepper(kern: tuple, start: float, record: list | None = None, general: bool = False):
     """The ``substeps`` of one sample for one loop axis: ``step(x, v, cmd) -> (x, v)``
     (``general``: the loop for any state space, also where one is written out; tests).
 
+    ``record`` (a list, or None): per substep, appended ``(force, slip, v)`` -- the force
+    the ripple and friction took off the command (input units: the state advanced on ``cmd
+    - force``), the sign by which the friction force grows with its Coulomb level (the
+    force's sign while sliding, 0 while stuck: there it is whatever holds the axis) and the
+    velocity the substep started from (the Stribeck term's).
+    What :mod:`primlib.greybox._refit` linearises the run about.
+
     Plain floats in closures (numpy's call overhead on a 2-vector is ten times the
     arithmetic); the usual rigid axes (two states, or three with a lag; no resonance) are
-    written out (:func:`_stepper3`: 3.4x faster than the general loop). The ripple
+    written out (:func:`_stepper3`: 3x faster than the general loop). The ripple
     is taken where the carriage is half-way through the substep (``p + v h / 2``, the
     midpoint rule): at the substep's start it would lag the continuous force by ``w v h / 2``
     rad, 4 % of the ripple for a 5 mm pitch at 50 mm/s and 4 substeps of 5 ms."""
     Ad, Bd, Cp, CvAd, vf, _, fr, (c_r, w0, phi, half), nsub, m = kern
     if len(Bd) == 3 and m == 3 and not general:
-        return _stepper3(kern, start)
+        return _stepper3(kern, start, record)
     if len(Bd) != 2 or general:
 
         def step(x, v, cmd):
@@ -141,6 +148,9 @@ def _stepper(kern: tuple, start: float, general: bool = False):
                 v_free = sum(c * xi for c, xi in zip(CvAd, x, strict=True)) + vf * w
                 fric, v_new = _friction(v, v_free, vf, fr)
                 w -= fric
+                if record is not None:
+                    slip = 0.0 if v_new == 0.0 else math.copysign(1.0, fric)
+                    record.append((cmd - w, slip, v))
                 x_new = [
                     sum(a * xi for a, xi in zip(row, x, strict=True)) + b * w
                     for row, b in zip(Ad, Bd, strict=True)
@@ -164,6 +174,9 @@ def _stepper(kern: tuple, start: float, general: bool = False):
                 w -= c_r * math.sin(w0 * (start + p0 * x0 + p1 * x1 + v * half) + phi)
             v_free = q0 * x0 + q1 * x1 + vf * w
             fric, v_new = _friction(v, v_free, vf, fr)
+            if record is not None:
+                slip = 0.0 if v_new == 0.0 else math.copysign(1.0, fric)
+                record.append((cmd - w + fric, slip, v))
             if not (v == 0.0 and v_new == 0.0 and fric != 0.0):  # else stuck: at rest
                 w -= fric
                 x0, x1 = a00 * x0 + a01 * x1 + b0 * w, a10 * x0 + a11 * x1 + b1 * w
@@ -173,7 +186,7 @@ def _stepper(kern: tuple, start: float, general: bool = False):
     return step2
 
 
-def _stepper3(kern: tuple, start: float):
+def _stepper3(kern: tuple, start: float, record: list | None):
     """:func:`_stepper` written out for a rigid axis of three states (a lag, no resonance)."""
     Ad, Bd, Cp, CvAd, vf, _, fr, (c_r, w0, phi, half), nsub, _ = kern
     (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = Ad
@@ -187,6 +200,9 @@ def _stepper3(kern: tuple, start: float):
                 w -= c_r * math.sin(w0 * (start + p0 * x0 + p1 * x1 + p2 * x2 + v * half) + phi)
             v_free = q0 * x0 + q1 * x1 + q2 * x2 + vf * w
             fric, v_new = _friction(v, v_free, vf, fr)
+            if record is not None:
+                slip = 0.0 if v_new == 0.0 else math.copysign(1.0, fric)
+                record.append((cmd - w + fric, slip, v))
             if not (v == 0.0 and v_new == 0.0 and fric != 0.0):  # else stuck: at rest
                 w -= fric
                 x0, x1, x2 = (
@@ -200,10 +216,13 @@ def _stepper3(kern: tuple, start: float):
     return step3
 
 
-def run_axis(kern: tuple, u: list, r: list, noise: list, start: float, pid) -> list:
-    """One loop axis over all samples (plain floats): the noise-free output, relative."""
+def run_axis(
+    kern: tuple, u: list, r: list, noise: list, start: float, pid, record: list | None = None
+) -> list:
+    """One loop axis over all samples (plain floats): the noise-free output, relative;
+    ``record``: each substep's force and slip sign appended (:func:`_stepper`)."""
     Cy = kern[5]
-    step = _stepper(kern, start)
+    step = _stepper(kern, start, record)
     x = [0.0] * len(Cy)
     v = 0.0
     kp, ki, kd, tf, dt = pid if pid is not None else (0.0,) * 5
