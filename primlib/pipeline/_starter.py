@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import NoMatchError
-from primlib.greybox import GreyBox, fit_greybox, polish
+from primlib.greybox import GreyBox, fit_greybox, polish, refit_greybox
 from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
 from primlib.pipeline._greywarm import (
@@ -167,7 +167,10 @@ class WarmStarter:
                 raise NoMatchError(
                     f"machine {machine.name!r} has no stored primitives to fit a model to"
                 )
-            hit = self.greyboxes[key] = fit_greybox(machine, pairs, linear=linear)
+            hit = fit_greybox(machine, pairs, linear=linear)
+            if not linear:  # beside a refined model: refitted through its own run
+                hit = refit_greybox(hit, pairs)
+            self.greyboxes[key] = hit
             while len(self.greyboxes) > self.refine_cache:
                 self.greyboxes.popitem(last=False)
         self.greyboxes.move_to_end(key)
