@@ -13,9 +13,8 @@ from test_greybox import ROOT, _coulomb_input, _smooth_path
 
 from primlib.greybox import TERMS, Pair, fit_greybox, forward_model, polish, refit_greybox
 from primlib.greybox._polish import _simulated
-from primlib.greybox._refit import KEEP, _Family, _linear_run
+from primlib.greybox._refit import KEEP, _Family
 from primlib.plant import Machine, RealisticMachine
-from primlib.plant._realistic_loop import loop_kernel, run_axis
 
 FC, LAG = 0.3, 0.012
 _C = TERMS.index("coulomb")
@@ -69,14 +68,14 @@ def test_the_run_linearised_about_its_switching_is_the_run(axis):
     # the forces the friction and ripple took off the command, frozen, drive the linear part
     # to the same output: what the refit's Jacobian rests on (rounding: 1e-9 of the motion)
     rm = RealisticMachine.from_machine(_lagged(), coulomb=FC, ripple=0.1, ripple_pitch=5.0)
-    kern = loop_kernel(axis, *rm.plants[axis], rm.departures[axis], rm.dt, rm.substeps)
     t = np.arange(400) * rm.dt
     u = np.where(t > 0.1, 2.5 * FC * np.sin(2 * np.pi * 1.5 * (t - 0.1)), 0.0)  # sticks, reverses
-    rec: list = []
-    zero = [0.0] * len(u)
-    y = np.asarray(run_axis(kern, u.tolist(), zero, zero, 3.0, None, rec))
-    rec = np.asarray(rec)
-    y_lin = _linear_run(kern, np.repeat(u, rm.substeps) - rec[:, 0])
+    y, rec = rm.run_recorded(axis, u, 3.0)
+    assert rec.shape == (400 * rm.substeps, 3)
+    # the same motion as the machine's own run
+    whole = rm.simulate(np.repeat(u[:, None], 3, axis=1), start=[3.0, 3.0, 3.0])
+    assert np.array_equal(y, whole[:, rm.axes.index(axis)])
+    y_lin = rm.substep_response(axis, np.repeat(u, rm.substeps) - rec[:, 0])
     assert np.max(np.abs(y_lin - y)) <= 1e-9 * np.max(np.abs(y))
     # it stuck somewhere, and slid both ways
     assert np.any(rec[:, 1] == 0) and np.any(rec[:, 1] > 0) and np.any(rec[:, 1] < 0)

@@ -51,12 +51,10 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import signal
 
 from primlib.greybox._features import TERMS
 from primlib.greybox._polish import _C, _S, _simulated, forward_model
-from primlib.plant import Machine
-from primlib.plant._realistic_loop import loop_kernel, run_axis
+from primlib.plant import Machine, RealisticMachine
 
 if TYPE_CHECKING:
     from primlib.greybox._model import GreyBox, Pair
@@ -137,55 +135,47 @@ class _Axis:
     def n_plant(self) -> int:
         return len(self.family.tau) + 1
 
-    def kernels(self, p: np.ndarray, ripple: bool) -> tuple:
+    def machine(self, p: np.ndarray, ripple: bool) -> RealisticMachine:
+        """The axis as a machine of its own, with parameters ``p``."""
         k = self.n_plant
-        num, den = self.family.plant(p[:k])
         c, s = float(p[k]), float(p[k + 1])
         dep = dict(self.dep, coulomb=c, static_ratio=1.0 + s / c)
         if not ripple:
             dep["ripple"] = 0.0
-        return loop_kernel(self.name, num, den, dep, self.dt, self.substeps)
+        plants = {self.name: self.family.plant(p[:k])}
+        return RealisticMachine(
+            "refit", self.dt, [self.name], plants, None, {self.name: dep}, substeps=self.substeps
+        )
 
-    def run(self, p: np.ndarray, record: bool = False):
+    def run(self, p: np.ndarray):
         """The model's output for every pair (relative), and per pair the substeps'
-        recorded (force, slip, velocity) when ``record``."""
-        kerns = {r: self.kernels(p, r) for r in (False, True)}
+        recorded (force, slip, velocity)."""
+        ms = {r: self.machine(p, r) for r in (False, True)}
         bias = float(p[-1])
-        outs, recs = [], []
-        for u, s in zip(self.inputs, self.starts, strict=True):
-            rec = [] if record else None
-            zero = [0.0] * len(u)
-            y = run_axis(kerns[s is not None], (u - bias).tolist(), zero, zero, s or 0.0, None, rec)
-            outs.append(np.asarray(y))
-            recs.append(np.asarray(rec) if record else None)
-        return outs, recs
+        runs = [
+            ms[s is not None].run_recorded(self.name, u - bias, s or 0.0)
+            for u, s in zip(self.inputs, self.starts, strict=True)
+        ]
+        return [r[0] for r in runs], [r[1] for r in runs]
 
     def residual(self, outs) -> np.ndarray:
         return np.concatenate([o - y for o, y in zip(outs, self.paths, strict=True)])
-
-
-def _linear_run(kern: tuple, w: np.ndarray) -> np.ndarray:
-    """The kernel's linear part driven by the per-substep force ``w``, at the samples."""
-    Ad, Bd, Cy, nsub = np.asarray(kern[0]), np.asarray(kern[1]), np.asarray(kern[5]), kern[8]
-    b, a = signal.ss2tf(Ad, Bd[:, None], Cy[None, :], np.zeros((1, 1)))
-    return signal.lfilter(b[0], a, w)[::nsub]  # the state after k samples' substeps
 
 
 def _jacobian(ax: _Axis, p: np.ndarray, recs) -> np.ndarray:
     """d output / d p (free parameters) with the forces of the run frozen (module notes)."""
     nsub, k = ax.substeps, ax.n_plant
     drive = [np.repeat(u - p[-1], nsub) - r[:, 0] for u, r in zip(ax.inputs, recs, strict=True)]
-    kern = ax.kernels(p, False)
-    base = [_linear_run(kern, w) for w in drive]
+    m = ax.machine(p, False)
+    base = [m.substep_response(ax.name, w) for w in drive]
     cols = []
     for j in np.flatnonzero(ax.free[:k]):
         q = p.copy()
         h = 1e-6 * max(abs(p[j]), 1e-6)
         q[j] += h
-        kq = ax.kernels(q, False)
-        cols.append(
-            np.concatenate([(_linear_run(kq, w) - b) / h for w, b in zip(drive, base, strict=True)])
-        )
+        mq = ax.machine(q, False)
+        moved = [mq.substep_response(ax.name, w) for w in drive]
+        cols.append(np.concatenate([(y - b) / h for y, b in zip(moved, base, strict=True)]))
     vs = ax.dep["stribeck_velocity"]
     forces = {
         k: [r[:, 1] for r in recs],  # Coulomb: the slip sign
@@ -193,7 +183,7 @@ def _jacobian(ax: _Axis, p: np.ndarray, recs) -> np.ndarray:
         k + 2: [(r[:, 1] != 0).astype(float) for r in recs],  # bias: held by a stuck axis
     }
     for j in np.flatnonzero(ax.free[k:]) + k:
-        cols.append(np.concatenate([-_linear_run(kern, f) for f in forces[j]]))
+        cols.append(np.concatenate([-m.substep_response(ax.name, f) for f in forces[j]]))
     return np.stack(cols, axis=1)
 
 
@@ -211,7 +201,7 @@ def _fit_axis(ax: _Axis, p0: np.ndarray, steps: int):
     """Levenberg-Marquardt on the frozen-switching Jacobian; a step is kept only where the
     real run's error falls. (parameters, RMS before, RMS after, iterations, RMS per pair)."""
     p = p0.copy()
-    outs, recs = ax.run(p, record=True)
+    outs, recs = ax.run(p)
     r = ax.residual(outs)
     sse0 = sse = float(r @ r)
     lam, done, fall = 1e-3, 0, 1.0
@@ -227,7 +217,7 @@ def _fit_axis(ax: _Axis, p0: np.ndarray, steps: int):
             H = A + lam * np.diag(np.diag(A)) + 1e-12 * np.eye(len(g))
             trial = _trial(ax, p, -np.linalg.solve(H, g) / scale)
             if trial is not None:
-                outs_t, recs_t = ax.run(trial, record=True)
+                outs_t, recs_t = ax.run(trial)
                 r_t = ax.residual(outs_t)
                 if float(r_t @ r_t) < sse:
                     fall = 1.0 - float(r_t @ r_t) / sse

@@ -278,6 +278,51 @@ class RealisticMachine(Machine):
             )
         return y
 
+    def _loop_kernel(self, axis: str) -> tuple:
+        if axis not in self.axes:
+            raise InputError(f"axis: expected one of {list(self.axes)}, got {axis!r}")
+        i = self.axes.index(axis)
+        kern = self._kernels[i]
+        if kern is None:  # a linear axis: the loop runs it all the same (to rounding)
+            kern = loop_kernel(
+                axis, *self._plants[axis], self._departures[axis], self.dt, self._substeps
+            )
+        return kern
+
+    def run_recorded(self, axis: str, u: Any, start: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """One axis's noise-free output for its input ``u`` (shape (n,), open loop, no
+        disturbance) from rest at the absolute position ``start``, and what it ran on.
+
+        Returns
+        -------
+        y : array, shape (n,)
+            As :meth:`simulate` gives it on that axis.
+        record : array, shape (n * substeps, 3)
+            Per substep: the force friction and ripple took off the input (input units),
+            the sign by which the friction force grows with its Coulomb level (0 while
+            stuck), the velocity the substep started from. Frozen, they linearise the run
+            about its switching: on a rigid axis (no resonance) :meth:`substep_response` of
+            ``np.repeat(u, substeps) - record[:, 0]`` is ``y`` to rounding (what
+            :func:`primlib.greybox.refit_greybox` differentiates).
+        """
+        kern = self._loop_kernel(axis)
+        u = np.asarray(u, dtype=float)
+        if u.ndim != 1 or not np.all(np.isfinite(u)):
+            raise InputError(f"u: expected a finite 1-D input, got shape {u.shape}")
+        rec: list = []
+        zero = [0.0] * len(u)
+        y = run_axis(kern, u.tolist(), zero, zero, float(start), None, rec)
+        return np.asarray(y), np.asarray(rec, dtype=float).reshape(-1, 3)
+
+    def substep_response(self, axis: str, w: Any) -> np.ndarray:
+        """The axis's linear part (viscous friction folded in) driven by the force ``w`` held
+        over each substep (shape (n * substeps,)), from rest: its output at the n samples."""
+        kern = self._loop_kernel(axis)
+        Ad, Bd, Cy = np.asarray(kern[0]), np.asarray(kern[1]), np.asarray(kern[5])
+        b, a = signal.ss2tf(Ad, Bd[:, None], Cy[None, :], np.zeros((1, 1)))
+        # output index j is the state after j substeps: sample k is index k * substeps
+        return signal.lfilter(b[0], a, np.asarray(w, dtype=float))[:: self._substeps]
+
     def reference_response(self, reference: Any) -> np.ndarray:
         """Noise-free output in the PID loops for u = 0 (trial 0, start 0), shape (n, d)."""
         r = self.check_signal(reference, "reference")
