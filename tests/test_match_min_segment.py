@@ -16,7 +16,7 @@ import primlib as pl
 from primlib.cli import main
 from primlib.defaults import BAND_SAMPLES, MIN_SEGMENT_BANDS
 from primlib.io import write_path_csv
-from primlib.match import Segment, match_path
+from primlib.match import BankIndex, Segment, match_path, matched_pieces, segment_path
 from primlib.match._segment import drop_short
 from primlib.nurbs import Trajectory
 from primlib.plant import Machine, invert
@@ -151,3 +151,60 @@ def test_drop_short_keeps_the_long_matches_and_merges_the_rest(cuts, flags, shor
     _check_cover(out)
     long = [(s.start, s.end) for s in segs if s.matched and s.end - s.start >= shortest]
     assert [(s.start, s.end) for s in out if s.matched] == long
+
+
+def _key(segments) -> list[tuple]:
+    """Every number of every segment (exact equality, float by float)."""
+    return [(s.start, s.end, s.primitive, s.primitive_start, s.primitive_end, s.time_scale,
+             s.rmsd, s.rotation.tobytes(), s.translation.tobytes()) for s in segments]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def sampled(setup):
+    """The setup's path on the bank's grid, as match_path samples it, and its default cuts."""
+    path, bank = setup["path"], setup["lib"].bank("xyz")
+    n = int(round(path.duration / setup["dt"])) + 1
+    pts = path.at(np.linspace(0.0, 1.0, n))
+    dt = path.duration / (n - 1)
+    index = BankIndex(bank)
+    return {"index": index, "pts": pts, "dt": dt, "default": segment_path(index, pts, dt, EPS)[0]}
+
+
+@pytest.mark.parametrize("min_samples", [0, 1, 8])
+def test_the_shortest_probe_as_minimum_is_the_default_segmentation(sampled, min_samples):
+    s = sampled
+    segs, _ = segment_path(s["index"], s["pts"], s["dt"], EPS, min_samples=min_samples)
+    assert _key(segs) == _key(s["default"])
+
+
+def test_match_path_at_the_default_drops_after_the_default_segmentation(setup, sampled):
+    # one band of 8 steps is 8 samples: no probe is left out, and the matches of 7 steps
+    # are dropped after, as before the segmentation knew of a minimum
+    mt = match_path(sampled["index"], setup["path"], EPS)
+    band = MIN_SEGMENT_BANDS * BAND_SAMPLES * setup["dt"]
+    before = drop_short(sampled["default"], band / setup["path"].duration, 3)
+    assert _key(mt.segments) == _key(before)
+
+
+@settings(max_examples=6, deadline=None)
+@given(st.integers(9, 80))
+def test_no_match_is_shorter_than_the_minimum_and_each_is_within_eps(sampled, min_samples):
+    s = sampled
+    segs, _ = segment_path(s["index"], s["pts"], s["dt"], EPS, min_samples=min_samples)
+    _check_cover(segs)
+    last = s["pts"].shape[0] - 1
+    assert all(abs(t.end * last - round(t.end * last)) < 1e-6 for t in segs)  # on samples
+    for t in segs:
+        if t.matched:
+            assert round((t.end - t.start) * last) + 1 >= min_samples
+            assert t.rmsd < EPS
+            p = matched_pieces([t], s["index"], n=round((t.end - t.start) * last) + 1)[0]
+            q = s["pts"][round(t.start * last) : round(t.end * last) + 1]
+            assert np.sqrt(np.mean(np.sum((p - q) ** 2, axis=1))) < EPS * (1 + 1e-6)
+
+
+def test_a_bad_min_samples_is_refused(sampled):
+    s = sampled
+    for bad, what in ((2.5, "a whole"), (-1, "a number of samples >= 0"), (True, "a whole")):
+        with pytest.raises(pl.InputError, match=f"min_samples: expected {what}"):
+            segment_path(s["index"], s["pts"], s["dt"], EPS, min_samples=bad)

@@ -13,6 +13,18 @@ matches from a cut, the unmatched stretch grows by σ, doubling while the failur
 sub-sample sliver left by a join between samples costs one step, a long stretch nothing
 matches only log₂ of its length in searches.
 
+A minimum segment of m steps (``min_samples`` − 1, default and at least 7: 8 samples) is
+the floor of every probe: a segment is the longest matching prefix the search finds among
+those of m steps or more. A start where nothing that long matches is unmatched — the first
+probe after one is m steps; after a match it is the last length, halved while it fails until
+below m — and the stretch then grows as above (σ, doubling), the next start being its end; a
+remainder of m steps or less is absorbed. Dropping short matches afterwards
+(:func:`drop_short`) leaves the cuts of the rest as found with the floor at 7: a match of
+k < m steps, found at two whole searches' cost, is dropped and the next start is its end
+(guess k); with the floor at m the next start is the stretch's σ-grown end (one step on),
+so a long match that starts inside such a short piece is found, one that starts at its end
+may be missed, and the matched fraction and cuts differ. At m = 7 both are today's.
+
 Where this differs from the paper (for speed; the answer is the same wherever "prefix [a, b]
 matches" is monotone in b, and always a prefix that matches followed by one that does not):
 
@@ -139,8 +151,9 @@ class _Segmenter:
     """One segmentation: the path, the bank, the search, and the probes (module notes)."""
 
     def __init__(self, seeder: Seeder, bank: BankIndex, path: PathPiece, eps: float,
-                 opts: SearchOptions) -> None:  # fmt: skip
+                 opts: SearchOptions, least: int = _MIN_SAMPLES - 1) -> None:  # fmt: skip
         self.seeder = seeder
+        self.least = least  # the shortest prefix probed, in path steps (samples − 1)
         self.bank = bank
         self.path = path
         self.eps = eps
@@ -184,7 +197,7 @@ class _Segmenter:
         the match (or None) and the lowest RMSD a seed reached (inf if none was tried).
         """
         self.probes += 1
-        if (b - a) * (self.path.n - 1) < _MIN_SAMPLES - 1 - 1e-9:
+        if (b - a) * (self.path.n - 1) < self.least - 1e-9:
             return None, np.inf
         steps = (b - a) * self.path.duration / self.bank.dt
         env, low = self.bank.envelope(), self.opts.time_scale[0]
@@ -255,12 +268,12 @@ class _Segmenter:
         return None if near is None else (at, near)
 
     def _screened(self, ia: int, length: int) -> bool:
-        """True when every prefix from ia of ``_MIN_SAMPLES`` to length + 1 samples provably
+        """True when every prefix from ia of ``least`` to ``length`` steps provably
         fails (:func:`._screen.prefixes_fail`; tried in unmatched stretches, where it holds)."""
         if not (self.screen and self.missed) or length > _SCREEN_MAX:
             return False
         self.slopes = self.slopes or SlopeRanges(self.bank.points, self.bank.offsets)
-        ends = [self._t(ia + ell) for ell in range(length, _MIN_SAMPLES - 2, -1)]
+        ends = [self._t(ia + ell) for ell in range(length, self.least - 1, -1)]
         a, opts = self._t(ia), self.opts  # the longest prefix first: it fails most
         if not prefixes_fail(self.slopes, self.path, a, ends, self.bank.dt, opts, self.eps):
             return False
@@ -274,7 +287,7 @@ class _Segmenter:
         before a whole search at L/2.
 
         Returns (match, its end, the shortest failing end (None if none), its RMSD, how it
-        failed) or None when nothing of ``_MIN_SAMPLES`` samples or more matches."""
+        failed) or None when nothing of ``least`` steps or more matches."""
         last, a = self.path.n - 1, self._t(ia)
         length = min(max(guess, sig), last - ia)
         if self._screened(ia, length):
@@ -282,14 +295,14 @@ class _Segmenter:
         hi, r_hi = None, np.inf
         found, r = self.probe(a, self._t(ia + length))
         while found is None:
-            if length <= sig or length < _MIN_SAMPLES - 1:
+            if length <= sig or length < self.least:
                 return None
             hi, r_hi, half = ia + length, r, max(sig, length // 2)
             near = int(0.9 * length * math.sqrt(self.eps / r)) if np.isfinite(r) else 0
             failed = self.failed
             if failed is not None and failed[:2] == (a, self._t(hi)) and failed[3]:
                 for at in sorted({min(max(near, half), length - 1), half}, reverse=True):
-                    if at >= _MIN_SAMPLES - 1:
+                    if at >= self.least:
                         self.extensions += 1
                         found, _ = self._stretched(a, self._t(hi), self._t(ia + at), failed[3])
                         if found is not None:
@@ -300,7 +313,7 @@ class _Segmenter:
 
     def longest_prefix(self, ia: int, sig: int, guess: int) -> tuple[int, _Found] | None:
         """The longest matching prefix from sample ia (module notes): its end sample and
-        match, or None when no prefix of ``_MIN_SAMPLES`` samples or more matches."""
+        match, or None when no prefix of ``least`` steps or more matches."""
         last, a = self.path.n - 1, self._t(ia)
         first = self._first_match(ia, sig, guess)
         if first is None:
@@ -421,7 +434,7 @@ class _Segmenter:
                     progress(ia, last, len(segments))
                 continue
             ib = min(last, ia + advance)
-            if last - ib < _MIN_SAMPLES:
+            if last - ib <= self.least:
                 ib = last  # never leave a sliver too short to match
             if segments and segments[-1].primitive is None:
                 segments[-1] = _unmatched(segments[-1].start, self._t(ib), d)
@@ -432,7 +445,7 @@ class _Segmenter:
             if guess == last:
                 # nothing matched yet, not even the shortest piece: the next start's first
                 # probe is the shortest piece (a match there gallops up through extensions)
-                guess = _MIN_SAMPLES - 1
+                guess = self.least
             if progress is not None:
                 progress(ia, last, len(segments))
         return segments
@@ -457,6 +470,7 @@ def segment_with(
     opts: SearchOptions,
     min_step: float | None = None,
     progress: Callable[[int, int, int], None] | None = None,
+    min_samples: int | None = None,
 ) -> tuple[list[Segment], dict[str, Any]]:
     """:func:`segment_path` with a given seed finder (the index search, or a reference)."""
     t_start = time.perf_counter()
@@ -469,9 +483,10 @@ def segment_with(
     sigma = 1.0 / (n - 1) if min_step is None else float(min_step)
     if not (0 < sigma <= 1):
         raise InputError(f"min_step: expected a fraction in (0, 1], got {min_step!r}")
+    least = _least(min_samples)
     bank.require()
     built = bank.index_seconds
-    seg = _Segmenter(seeder, bank, PathPiece(pts, (n - 1) * float(dt)), eps, opts)
+    seg = _Segmenter(seeder, bank, PathPiece(pts, (n - 1) * float(dt)), eps, opts, least)
     segments = seg.run(max(1, int(round(sigma * (n - 1)))), progress)
     stats = seeder.stats
     info = {
@@ -491,6 +506,18 @@ def segment_with(
     return segments, info
 
 
+def _least(min_samples: int | None) -> int:
+    """The shortest prefix probed, in path steps: ``min_samples`` − 1 checked, at least
+    ``_MIN_SAMPLES`` − 1 (today's shortest probe when None)."""
+    if min_samples is None:
+        return _MIN_SAMPLES - 1
+    if isinstance(min_samples, bool) or not isinstance(min_samples, int | np.integer):
+        raise InputError(f"min_samples: expected a whole number of samples, got {min_samples!r}")
+    if min_samples < 0:
+        raise InputError(f"min_samples: expected a number of samples >= 0, got {min_samples!r}")
+    return max(_MIN_SAMPLES, int(min_samples)) - 1
+
+
 def segment_path(
     bank: Bank | BankIndex,
     points: np.ndarray,
@@ -502,6 +529,7 @@ def segment_path(
     min_step: float | None = None,
     options: SearchOptions | None = None,
     progress: Callable[[int, int, int], None] | None = None,
+    min_samples: int | None = None,
 ) -> tuple[list[Segment], dict[str, Any]]:
     """Cut a path into the fewest pieces that each match a stored piece within eps.
 
@@ -530,6 +558,11 @@ def segment_path(
     progress : callable, optional
         ``progress(done, total, segments)`` after each cut: path samples covered so far,
         of ``total = n − 1``, and the segments found so far (matched or not).
+    min_samples : int, optional
+        Shortest matched segment, in path samples (``min_samples`` − 1 steps): no shorter
+        prefix is probed, and a start from which none of that length matches begins an
+        unmatched stretch (module notes). Default and at least ``_MIN_SAMPLES`` (8), the
+        shortest piece probed at all.
 
     Returns
     -------
@@ -541,13 +574,15 @@ def segment_path(
     Raises
     ------
     InputError
-        eps <= 0, an unknown rotation, a path of another dimension than the bank.
+        eps <= 0, an unknown rotation, a path of another dimension than the bank, a
+        ``min_samples`` that is not a whole number >= 0.
     NoMatchError
         The bank holds no usable primitive.
     """
     index = as_index(bank)
     opts = resolve_options(rotation, time_scale, options)
-    return segment_with(seeder_for(index, opts), index, points, dt, eps, opts, min_step, progress)
+    seeder = seeder_for(index, opts)
+    return segment_with(seeder, index, points, dt, eps, opts, min_step, progress, min_samples)
 
 
 def seeder_for(index: BankIndex, opts: SearchOptions) -> Seeder:
