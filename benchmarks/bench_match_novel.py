@@ -75,6 +75,7 @@ def worker(spec: dict) -> dict:
     import numpy as np
 
     from primlib.match import BankIndex, default_eps, segment_path
+    from primlib.match._segment import drop_short
     from primlib.nurbs import Trajectory
 
     bank, dt = _library(spec["library"])
@@ -96,14 +97,29 @@ def worker(spec: dict) -> dict:
                 eps *= spec["shrink"]
             out["samples"] = n
             index = BankIndex(bank)  # first call: the index is built inside
+            more, shortest = _min_segment(spec, segment_path, path.duration / (n - 1))
             t0, c0 = time.perf_counter(), time.process_time()
-            s, _ = segment_path(index, pts, path.duration / (n - 1), eps, **kw)
+            s, _ = segment_path(index, pts, path.duration / (n - 1), eps, **kw, **more)
+            if shortest is not None:  # as match_path: matches shorter than it dropped after
+                s = drop_short(s, shortest / path.duration, 3)
             times.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)
             segs.append([(round(x.end, 9), x.primitive) for x in s])
             frac.append(sum(x.end - x.start for x in s if x.primitive is not None))
         out[label] = {"times": times, "cpu": cpu, "segments": segs, "fraction": frac}
     return out
+
+
+def _min_segment(spec: dict, segment_path, dt: float) -> tuple[dict, float | None]:
+    """The segmentation's keywords for ``spec``'s minimum segment (seconds), as match_path
+    passes it (``min_samples``: min_segment / dt samples, rounded; none on a revision whose
+    segmentation has no such option, which only drops the short matches after), and it."""
+    import inspect
+
+    shortest = spec.get("min_segment")
+    if shortest is None or "min_samples" not in inspect.signature(segment_path).parameters:
+        return {}, shortest
+    return {"min_samples": int(round(shortest / dt))}, shortest
 
 
 def _merge(into: dict, more: dict) -> None:
@@ -140,6 +156,8 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         f"{spec['paths']} paths")  # fmt: skip
     if spec.get("shrink"):
         what += f" scaled by {spec['shrink']:g}"
+    if spec.get("min_segment") is not None:
+        what += f", min segment {spec['min_segment']:g} s (shorter matches dropped)"
     print(f"\n{spec['library']} library, {samples:,} samples, {what} (first call, seconds)")
     print("| case | median | CPU | worst | segments (median) | matched | baseline median | "
           "baseline CPU | ratio | CPU ratio |")  # fmt: skip
@@ -161,6 +179,20 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         print("\nCPU seconds path by path, this tree / baseline (ratio):")
         for label in spec["cases"]:
             print(f"- {label}: {_per_path(new[label]['cpu'], old[label]['cpu'])}")
+    print("\nSegments / matched, path by path (the baseline's in brackets):")
+    for label in spec["cases"]:
+        print(f"- {label}: {_per_path_cuts(new[label], (old or {}).get(label))}")
+
+
+def _per_path_cuts(r: dict, o: dict | None) -> str:
+    """Each path's segments and fraction matched (the baseline's beside, when given)."""
+    cells = [
+        f"{len(s)} / {100 * f:.1f} %" for s, f in zip(r["segments"], r["fraction"], strict=True)
+    ]
+    if o is not None:
+        old = zip(cells, o["segments"], o["fraction"], strict=True)
+        cells = [f"{c} [{len(s)} / {100 * f:.1f} %]" for c, s, f in old]
+    return ", ".join(cells)
 
 
 def _per_path(cpu: list[float], base: list[float]) -> str:
@@ -199,6 +231,14 @@ def main() -> None:
         "them): 1e-6 makes paths that barely move against the library's primitives",
     )
     ap.add_argument(
+        "--min-segment",
+        type=float,
+        nargs="+",
+        help="instead of the segmentation alone, as match_path with these minimum segments "
+        "(seconds, one run each): no probe shorter (this tree; a revision without the option "
+        "drops the short matches after, as match_path did), shorter matches dropped",
+    )
+    ap.add_argument(
         "--glyph-chain",
         action="store_true",
         help="instead: data/paths/glyph-chain.csv (glyphs the library holds, rotated), the "
@@ -218,6 +258,8 @@ def main() -> None:
     if args.glyph_chain:
         specs = [{"library": "bundled", "samples": 0, "paths": args.paths, "cases": args.cases,
                   "file": "data/paths/glyph-chain.csv"}]  # fmt: skip
+    if args.min_segment:
+        specs = [dict(specs[0], min_segment=m) for m in args.min_segment] + specs[1:]
     if args.big:
         specs.append({"library": "random-1000", "samples": args.samples, "paths": args.paths,
                       "cases": args.big_cases})  # fmt: skip
