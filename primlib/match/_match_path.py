@@ -61,9 +61,8 @@ def match_path(
     min_segment : float, optional
         Shortest matched segment kept, seconds of the path; a shorter match is not worth a
         junction and becomes part of the unmatched stretch beside it (the warm start fills
-        those from the model): the segmentation probes no piece of fewer samples than
-        ``min_segment`` / dt (rounded; ``min_samples`` of :func:`segment_path`), so a start
-        where none that long matches is unmatched, and a match a step shorter than
+        those from the model): no piece of fewer samples than ``min_segment`` / dt (rounded,
+        ``min_samples`` of :func:`segment_path`) is probed, and one a step shorter than
         ``min_segment`` is dropped after. Default ``MIN_SEGMENT_BANDS`` transition bands of
         ``BAND_SAMPLES`` machine steps (:mod:`primlib.defaults`); 0 keeps every match.
 
@@ -100,11 +99,9 @@ def match_path(
     n = max(int(round(path.duration / index.dt)) + 1, 2)
     points = path.at(np.linspace(0.0, 1.0, n))
     check_path_samples(points, "path")
-    kw = {"time_scale": time_scale, "min_step": min_step, "options": options}
     dt = path.duration / (n - 1)
-    # no probe shorter than min_segment in samples (one band: 8, the shortest probe at all);
-    # a match of that many samples lasts a step less than min_segment and is dropped after
-    kw["min_samples"] = int(round(shortest / dt))
+    kw = {"time_scale": time_scale, "min_step": min_step, "options": options,
+          "min_samples": int(round(shortest / dt))}  # fmt: skip
     segments, info = segment_path(
         index, points, dt, eps, rotation=rotation, progress=progress, **kw
     )
