@@ -23,7 +23,9 @@ remainder of m steps or less is absorbed. Dropping short matches afterwards
 k < m steps, found at two whole searches' cost, is dropped and the next start is its end
 (guess k); with the floor at m the next start is the stretch's σ-grown end (one step on),
 so a long match that starts inside such a short piece is found, one that starts at its end
-may be missed, and the matched fraction and cuts differ. At m = 7 both are today's.
+may be missed, and the matched fraction and cuts differ. At m = 7 both are today's. With
+no short match to reset it, the doubling leaps over most starts of a mostly unmatched path
+(rotation none, novel paths, m = 15: 0-8 % matched; the stretch grown by m + 1 at most: 3-25 %).
 
 Where this differs from the paper (for speed; the answer is the same wherever "prefix [a, b]
 matches" is monotone in b, and always a prefix that matches followed by one that does not):
