@@ -117,6 +117,11 @@ def _friction(v: float, v_free: float, vf: float, fr: tuple) -> tuple[float, flo
     return (v_free - v_new) / vf, v_new
 
 
+def _note(record: list, force: float, fric: float, v_new: float, v: float) -> None:
+    """One substep's ``(force, slip, v)`` appended to ``record`` (:func:`_stepper`)."""
+    record.append((force, 0.0 if v_new == 0.0 else math.copysign(1.0, fric), v))
+
+
 def _stepper(kern: tuple, start: float, record: list | None = None, general: bool = False):
     """The ``substeps`` of one sample for one loop axis: ``step(x, v, cmd) -> (x, v)``
     (``general``: the loop for any state space, also where one is written out; tests).
@@ -149,8 +154,7 @@ def _stepper(kern: tuple, start: float, record: list | None = None, general: boo
                 fric, v_new = _friction(v, v_free, vf, fr)
                 w -= fric
                 if record is not None:
-                    slip = 0.0 if v_new == 0.0 else math.copysign(1.0, fric)
-                    record.append((cmd - w, slip, v))
+                    _note(record, cmd - w, fric, v_new, v)
                 x_new = [
                     sum(a * xi for a, xi in zip(row, x, strict=True)) + b * w
                     for row, b in zip(Ad, Bd, strict=True)
@@ -175,8 +179,7 @@ def _stepper(kern: tuple, start: float, record: list | None = None, general: boo
             v_free = q0 * x0 + q1 * x1 + vf * w
             fric, v_new = _friction(v, v_free, vf, fr)
             if record is not None:
-                slip = 0.0 if v_new == 0.0 else math.copysign(1.0, fric)
-                record.append((cmd - w + fric, slip, v))
+                _note(record, cmd - w + fric, fric, v_new, v)
             if not (v == 0.0 and v_new == 0.0 and fric != 0.0):  # else stuck: at rest
                 w -= fric
                 x0, x1 = a00 * x0 + a01 * x1 + b0 * w, a10 * x0 + a11 * x1 + b1 * w
@@ -201,8 +204,7 @@ def _stepper3(kern: tuple, start: float, record: list | None):
             v_free = q0 * x0 + q1 * x1 + q2 * x2 + vf * w
             fric, v_new = _friction(v, v_free, vf, fr)
             if record is not None:
-                slip = 0.0 if v_new == 0.0 else math.copysign(1.0, fric)
-                record.append((cmd - w + fric, slip, v))
+                _note(record, cmd - w + fric, fric, v_new, v)
             if not (v == 0.0 and v_new == 0.0 and fric != 0.0):  # else stuck: at rest
                 w -= fric
                 x0, x1, x2 = (
