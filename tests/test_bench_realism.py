@@ -32,6 +32,17 @@ def test_a_tiny_run_measures_every_start_on_every_kind():
         assert first["cold"] > 10 * first["nominal"] > 0
         assert row["floor"] >= bench_realism.FLOOR_MIN
         assert set(row["choices"]) <= {"stored", "model", "blend"}
+        # without noise or a disturbance an input's own error is its first trial's
+        assert row["own"] == pytest.approx({s: first[s] for s in row["own"]}, rel=1e-9)
     # in place, the library's own signal is what the machine needed there
     in_place = res["rows"]["in place"][0]["first"]
     assert in_place["warm"] < in_place["nominal"] / 10
+
+
+def test_settings_are_named_and_all_together_can_be_asked_for_alone():
+    names = bench_realism._setting_names
+    assert names("all") == list(bench_realism.SETTINGS)
+    assert names("all together") == ["all"]
+    assert names("friction 2 %, all together") == ["friction 2 %", "all"]
+    with pytest.raises(SystemExit, match="unknown"):
+        names("friction 3 %")
