@@ -21,9 +21,10 @@ of the windows fills the pool first so that its threshold prunes from the start;
 shape bound would be taken on most windows, the cone of :mod:`._cone` first drops whole
 blocks of windows from the bounds at every 8th window: a window's RMSD moves by at most
 the spacing of its points from one window to the next), exact float64 scores only for
-what passes — until no unscored window's bound is below the pool's threshold
-(:mod:`._pool`) or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer level's step; a
-stored copy starts within Δ_b/2 of a window). The pool is re-scored at sub-step
+what passes (for ``rotation="none"``, from a level's second query on, only the windows a
+ball query of :mod:`._ball` finds near it) — until no unscored window's bound is below the
+pool's threshold (:mod:`._pool`) or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer
+level's step; a stored copy starts within Δ_b/2 of a window). The pool is re-scored at sub-step
 shifts of its windows' starts (a copy is then within Δ_b/8 of a shift); the best ``seeds``
 distinct windows, and every other one within √2·(3ε + Δ_b/8) of the best, become the seeds,
 which the exact check (:mod:`._segment`) decides between.
@@ -53,7 +54,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from primlib.match import _cone
+from primlib.match import _ball, _cone
 from primlib.match._arc_index import ArcIndex, ArcQuery
 from primlib.match._bank import BankIndex
 from primlib.match._bounds import (
@@ -371,6 +372,8 @@ class IndexSearch:
         pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, g, math.sqrt(2.0) * g)
         if aq.n_windows <= self.chunk:
             self._few(aq, gates, pool)
+            return pool
+        if _ball.search(self, aq, gates, pool):  # rotation none: the windows near the query
             return pool
         head = np.arange(0, aq.n_windows, self.sample)
         sampled = head.size
