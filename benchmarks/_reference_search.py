@@ -46,6 +46,7 @@ class ScanSearch(IndexSearch):
     """The index search with every window scored (no lower-bound pruning)."""
 
     name: ClassVar[str] = "scan"
+    ball: ClassVar[bool] = False  # every window, not those of a ball query
 
     def first_bound(self, aq: ArcQuery, ws=None, stride: int = 1) -> np.ndarray:
         if isinstance(ws, tuple):
@@ -68,6 +69,7 @@ class InvariantBoundSearch(IndexSearch):
     ``bench_match.py --restricted``."""
 
     name: ClassVar[str] = "invariant-bound"
+    ball: ClassVar[bool] = False  # the bounds alone, as before the ball queries too
 
     def first_bound(self, aq: ArcQuery, ws=None, stride: int = 1) -> np.ndarray:
         psum, pmax, radius = aq.index.sums(aq.jb, aq.dil)

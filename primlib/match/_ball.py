@@ -164,7 +164,7 @@ def search(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: CandidatePool)
     """Fill ``pool`` from the windows of the balls (:func:`candidates`), valid, bounded and
     drained best-first as :meth:`._index_search.IndexSearch._few` does every window;
     False (the pool untouched) where the ball does not apply (module notes)."""
-    if search.opts.rotation != "none" or aq.n_windows <= search.chunk:
+    if not search.ball or search.opts.rotation != "none" or aq.n_windows <= search.chunk:
         return False
     ws = candidates(aq.index, aq, gates.top, int(_MOST * aq.n_windows))
     if ws is None:

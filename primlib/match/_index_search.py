@@ -99,6 +99,7 @@ class IndexSearch:
     cone_min: int = _cone.MIN_WINDOWS  # fewer windows a query: no cone
     stats: SearchStats = field(default_factory=SearchStats)
     name: ClassVar[str] = "index"
+    ball: ClassVar[bool] = True  # rotation none: ball queries (:mod:`._ball`) where they pay
 
     def __post_init__(self) -> None:
         self._grid = GridSearch(self.bank, self.opts, self.stats)
