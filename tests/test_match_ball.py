@@ -94,7 +94,6 @@ def test_the_balls_hold_every_window_below_their_radius_and_few_others(novel, ep
         sub = _ball.SUBS[0]
         assert aq.k >= sub and aq.n_windows > search.chunk
         gates = _Gates.of(aq, eps)
-        _ball._tree(aq.index, aq.jb, aq.dil, sub)  # a level's tree: built on its second query
         got = _ball._tree(aq.index, aq.jb, aq.dil, sub)
         _, shape = search.score(aq, np.arange(aq.n_windows))
         for rho in (0.5 * gates.top, gates.top):
@@ -131,10 +130,9 @@ def test_seeds_with_the_balls_are_those_of_every_window_scored(novel, copies, ta
     rounds, subs = set(), set()
     for (bank, path), eps in ((novel, 0.05), (novel, 0.5), (copies, 0.05)):
         for a, b in PIECES:
-            for _ in range(2):  # a level's tree is built on its second query
-                calls.clear()
-                search = IndexSearch(bank, opts, chunk=256, first_batch=64, target_points=target)
-                seeds = search.seeds(path, a, b, eps)
+            calls.clear()
+            search = IndexSearch(bank, opts, chunk=256, first_batch=64, target_points=target)
+            seeds = search.seeds(path, a, b, eps)
             rounds.add(sum(ws is not None for _, ws in calls))
             subs.update(sub for sub, _ in calls)
             scan = ScanSearch(bank, opts, chunk=256, first_batch=64, target_points=target)

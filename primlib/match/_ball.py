@@ -64,10 +64,12 @@ skipped only where the threshold is below g/2 by a relative 10⁻⁹ (the combin
 hypot(ρ̂, ·) ≥ ρ̂).
 
 **When.** Rotation ``"none"``, queries of at least 8 arc samples on levels of more than
-``search.chunk`` windows (fewer: bounding them all is as cheap), from the second query on a
-level on (a level asked once is cheaper to scan than to build a tree for: ~0.2 µs a point,
-against ~25 ns a window a query); a first ball holding more than an eighth of the windows
-is dropped for the plain search (a long straight query, where most windows are straight).
+``search.chunk`` windows (fewer: bounding them all is as cheap). The tree is built on a
+level's first such query (~0.2 µs a point, against ~25 ns a window a query for the plain
+search; waiting for the second query, so that a level asked once is scanned instead, was
+slower on 1,000 primitives: the first scan builds the cone's tables besides, and no level
+there is asked once); a first ball holding more than an eighth of the windows is dropped
+for the plain search (a long straight query, where most windows are straight).
 """
 
 from __future__ import annotations
@@ -134,22 +136,17 @@ def radius(rho: float, k: int, sub: int, d: int, coord: float) -> float:
 
 def _tree(index: ArcIndex, jb: int, dil: int, sub: int):
     """The k-d tree of level jb's descriptors of ``sub``-point sub-windows at dilation dil,
-    and the level's largest |coordinate|: built on the second call (None on the first)."""
+    and the level's largest |coordinate|: built on the first call, then kept."""
     key = ("ball", jb, dil, sub)
     hit = index.cache.get(key)
     if hit is None:
-        index.cache[key] = hit = [0, None, 0.0]
-    if hit[1] is None:
-        hit[0] += 1
-        if hit[0] < 2:
-            return None
         from scipy.spatial import cKDTree
 
         pts = index.levels[jb].pts
-        hit[1] = cKDTree(descriptors(pts, dil, sub), leafsize=32, balanced_tree=False,
-                         compact_nodes=False)  # fmt: skip
-        hit[2] = float(np.abs(pts).max()) if pts.size else 0.0
-    return hit[1], hit[2]
+        tree = cKDTree(descriptors(pts, dil, sub), leafsize=32, balanced_tree=False,
+                       compact_nodes=False)  # fmt: skip
+        hit = index.cache[key] = (tree, float(np.abs(pts).max()) if pts.size else 0.0)
+    return hit
 
 
 def candidates(aq: ArcQuery, got: tuple, sub: int, rho: float,
@@ -185,9 +182,9 @@ def search(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: CandidatePool)
     if not search.ball or search.opts.rotation != "none" or aq.n_windows <= search.chunk:
         return False
     sub = next((s for s in SUBS if s <= aq.k), None)
-    got = None if sub is None else _tree(aq.index, aq.jb, aq.dil, sub)
-    if got is None:
+    if sub is None:
         return False
+    got = _tree(aq.index, aq.jb, aq.dil, sub)
     rho = _FIRST * gates.top
     ws = candidates(aq, got, sub, rho, int(_MOST * aq.n_windows))
     if ws is None:

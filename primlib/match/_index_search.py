@@ -21,8 +21,8 @@ of the windows fills the pool first so that its threshold prunes from the start;
 shape bound would be taken on most windows, the cone of :mod:`._cone` first drops whole
 blocks of windows from the bounds at every 8th window: a window's RMSD moves by at most
 the spacing of its points from one window to the next), exact float64 scores only for
-what passes (for ``rotation="none"``, from a level's second query on, only the windows a
-ball query of :mod:`._ball` finds near it) — until no unscored window's bound is below the
+what passes (for ``rotation="none"`` on levels of many windows, only the windows ball
+queries of :mod:`._ball` find near the query) — until no unscored window's bound is below the
 pool's threshold (:mod:`._pool`) or the gate 3ε + Δ_b/2 on the shape RMSD (Δ_b the finer
 level's step; a stored copy starts within Δ_b/2 of a window). The pool is re-scored at sub-step
 shifts of its windows' starts (a copy is then within Δ_b/8 of a shift); the best ``seeds``
