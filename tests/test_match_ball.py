@@ -85,7 +85,9 @@ PIECES = [(0.0, 0.05), (0.2, 0.24), (0.5, 0.58), (0.3, 0.5), (0.7, 0.73)]
 
 
 @pytest.mark.parametrize("eps", [0.05, 0.5])
-def test_the_balls_hold_every_window_below_their_radius_and_few_others(novel, eps):
+def test_the_balls_hold_every_window_below_their_radius_and_few_others(novel, eps,
+                                                                      monkeypatch):  # fmt: skip
+    monkeypatch.setattr(_ball, "_BUILD", 0)  # a tree at a level's first query
     bank, path = novel
     found = 0
     for a, b in PIECES:
@@ -94,7 +96,7 @@ def test_the_balls_hold_every_window_below_their_radius_and_few_others(novel, ep
         sub = _ball.SUBS[0]
         assert aq.k >= sub and aq.n_windows > search.chunk
         gates = _Gates.of(aq, eps)
-        got = _ball._tree(aq.index, aq.jb, aq.dil, sub)
+        got = _ball._tree(aq.index, aq.jb, aq.dil, sub, aq.n_windows)
         _, shape = search.score(aq, np.arange(aq.n_windows))
         for rho in (0.5 * gates.top, gates.top):
             ws = _ball.candidates(aq, got, sub, rho, aq.n_windows)
@@ -121,6 +123,7 @@ def test_seeds_with_the_balls_are_those_of_every_window_scored(novel, copies, ta
                                                                monkeypatch):  # fmt: skip
     # pieces of 16-31 arc samples (target 16) and 8-15 (target 8: the 8-point trees); on
     # near copies the pool fills up below half the gate (one round), on the novel library not
+    monkeypatch.setattr(_ball, "_BUILD", 0)  # a tree at a level's first query
     opts = SearchOptions(rotation="none")
     calls = []
     real = _ball.candidates
@@ -142,3 +145,20 @@ def test_seeds_with_the_balls_are_those_of_every_window_scored(novel, copies, ta
                 plain = IndexSearch(bank, opts, chunk=256, first_batch=64, target_points=target)
                 assert seeds == plain.seeds(path, a, b, eps)
     assert rounds == {1, 2} and subs == {target}
+
+
+def test_a_level_asked_for_few_windows_in_all_is_searched_without_a_tree(monkeypatch):
+    # the tree is built once the level's queries have asked for _BUILD windows in all
+    rng = np.random.default_rng(13)
+    bank = BankIndex(Bank.from_samples(_harmonics(rng, 20, 400), DT))
+    path = PathPiece(_harmonics(rng, 1, 600)[0], 599 * DT)
+    opts = SearchOptions(rotation="none")
+    search = IndexSearch(bank, opts, chunk=256, first_batch=64)
+    aq = search.arc_query(path, 0.2, 0.24, 0.05)
+    monkeypatch.setattr(_ball, "_BUILD", 3 * aq.n_windows)
+    built = []
+    for _ in range(4):
+        search = IndexSearch(bank, opts, chunk=256, first_batch=64)
+        search.seeds(path, 0.2, 0.24, 0.05)
+        built.append(aq.index.cache[("ball", aq.jb, aq.dil, _ball.SUBS[0])][1] is not None)
+    assert built == [False, False, True, True]

@@ -64,12 +64,17 @@ skipped only where the threshold is below g/2 by a relative 10⁻⁹ (the combin
 hypot(ρ̂, ·) ≥ ρ̂).
 
 **When.** Rotation ``"none"``, queries of at least 8 arc samples on levels of more than
-``search.chunk`` windows (fewer: bounding them all is as cheap). The tree is built on a
-level's first such query (~0.2 µs a point, against ~25 ns a window a query for the plain
-search; waiting for the second query, so that a level asked once is scanned instead, was
-slower on 1,000 primitives: the first scan builds the cone's tables besides, and no level
-there is asked once); a first ball holding more than an eighth of the windows is dropped
-for the plain search (a long straight query, where most windows are straight).
+``search.chunk`` windows (fewer: bounding them all is as cheap). A level's tree is built
+once its queries have asked for 2²¹ windows in all (at the second query on a level of 2
+million, the 16th on one of 131,072): a tree costs ~0.2 µs a point to build and a ball
+search has fixed costs of its own (~1-2 ms: two rounds, the trees' index lists), so on a
+level asked a few times, or a small one, the plain search is cheaper. Built at every
+level's first query, the trees cost the 14 bundled primitives up to 0.3 s a path (levels
+of 15,000-500,000 windows asked 1-26 times: 1.14 against 0.83 s CPU on one path); on
+1,000 primitives the 2²¹ rule measured no slower than that (4.5 and 3.2 against 4.7 and
+3.6 s CPU on two paths), and 2²⁰ no faster on either library.
+A first ball holding more than an eighth of the windows is dropped for the plain search (a
+long straight query, where most windows are straight).
 """
 
 from __future__ import annotations
@@ -91,6 +96,7 @@ SUBS = (16, 8)  # points of the sub-windows described: the most a query's K allo
 _U = 2.0**-53
 _MOST = 0.125  # a first ball holding more of the windows: the plain search
 _FIRST = 0.5  # the first ball's share of the gate
+_BUILD = 1 << 21  # windows a level's queries ask for before its tree is built
 
 
 def descriptors(pts: np.ndarray, dil: int, sub: int) -> np.ndarray:
@@ -134,19 +140,26 @@ def radius(rho: float, k: int, sub: int, d: int, coord: float) -> float:
     return (rho * math.sqrt(k / sub) + err + 2.0 * desc) * (1.0 + 1e-9)
 
 
-def _tree(index: ArcIndex, jb: int, dil: int, sub: int):
+def _tree(index: ArcIndex, jb: int, dil: int, sub: int, n_windows: int):
     """The k-d tree of level jb's descriptors of ``sub``-point sub-windows at dilation dil,
-    and the level's largest |coordinate|: built on the first call, then kept."""
+    and the level's largest |coordinate|; None until the level's queries (of
+    ``n_windows`` windows each) have asked for ``_BUILD`` windows in all, then built and
+    kept."""
     key = ("ball", jb, dil, sub)
     hit = index.cache.get(key)
     if hit is None:
+        hit = index.cache[key] = [0, None, 0.0]
+    if hit[1] is None:
+        hit[0] += n_windows
+        if hit[0] < _BUILD:
+            return None
         from scipy.spatial import cKDTree
 
         pts = index.levels[jb].pts
-        tree = cKDTree(descriptors(pts, dil, sub), leafsize=32, balanced_tree=False,
-                       compact_nodes=False)  # fmt: skip
-        hit = index.cache[key] = (tree, float(np.abs(pts).max()) if pts.size else 0.0)
-    return hit
+        hit[1] = cKDTree(descriptors(pts, dil, sub), leafsize=32, balanced_tree=False,
+                         compact_nodes=False)  # fmt: skip
+        hit[2] = float(np.abs(pts).max()) if pts.size else 0.0
+    return hit[1], hit[2]
 
 
 def candidates(aq: ArcQuery, got: tuple, sub: int, rho: float,
@@ -184,7 +197,9 @@ def search(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: CandidatePool)
     sub = next((s for s in SUBS if s <= aq.k), None)
     if sub is None:
         return False
-    got = _tree(aq.index, aq.jb, aq.dil, sub)
+    got = _tree(aq.index, aq.jb, aq.dil, sub, aq.n_windows)
+    if got is None:
+        return False
     rho = _FIRST * gates.top
     ws = candidates(aq, got, sub, rho, int(_MOST * aq.n_windows))
     if ws is None:
