@@ -34,6 +34,7 @@ def test_a_tiny_run_measures_every_start_on_every_kind():
         assert set(row["choices"]) <= {"stored", "model", "blend"}
         # without noise or a disturbance an input's own error is its first trial's
         assert row["own"] == pytest.approx({s: first[s] for s in row["own"]}, rel=1e-9)
+        assert row["bound"] is None  # no trial-varying disturbance: nothing to bound
     # in place, the library's own signal is what the machine needed there
     in_place = res["rows"]["in place"][0]["first"]
     assert in_place["warm"] < in_place["nominal"] / 10
@@ -46,3 +47,18 @@ def test_settings_are_named_and_all_together_can_be_asked_for_alone():
     assert names("friction 2 %, all together") == ["friction 2 %", "all"]
     with pytest.raises(SystemExit, match="unknown"):
         names("friction 3 %")
+
+
+@pytest.mark.slow
+def test_under_a_disturbance_the_first_trial_bound_is_an_input_better_than_every_start():
+    out = bench_realism.main(
+        ["--settings", "disturbance", "--paths", "1", "--trials", "2", "--library-trials", "3",
+         "--primitives", "3"]
+    )  # fmt: skip
+    for kind in bench_realism.KINDS:
+        (row,) = out["results"][0]["rows"][kind]
+        bound = row["bound"]
+        # ILC on the calm machine from the start of least own error keeps its best trial:
+        # never worse than that start, and it leaves the disturbance's draw in the first trial
+        assert bound["own"] <= min(row["own"].values()) * (1 + 1e-9)
+        assert np.isfinite(bound["first"]) and bound["first"] > bound["own"]
