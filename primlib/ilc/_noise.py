@@ -54,6 +54,7 @@ from primlib._errors import InputError
 from primlib.ilc._laws import law_from_name
 from primlib.ilc._learn import _prepare, _update
 from primlib.ilc._qfilter import QFilter
+from primlib.ilc._settled import settled_runs
 
 __all__ = ["TrialLearner", "TrialUpdate", "NoiseEstimate", "estimate_noise", "pooled_noise"]
 
@@ -486,6 +487,33 @@ class TrialLearner:
         u, y = self._check_history(inputs, outputs)
         best = int(np.argmin(self._measured_rms(y)))
         return best, self._worth(u, y, best + 1)
+
+    def stored_input(self, inputs, outputs) -> tuple[np.ndarray, float | None, tuple[int, int]]:
+        """(input, error, (k0, k1)): what a finished series stores -- the best trial's input
+        (:meth:`best_input`; (k0, k1) = (best, best + 1)), or the mean of the inputs of the
+        settled trials k0..k1-1 where that is estimated to leave less
+        (:mod:`primlib.ilc._settled`: near the floor each trial's input carries a copy of
+        the last trial's non-repeatable part, and their mean averages the copies out) --
+        and the true error it is estimated to leave.
+
+        Parameters
+        ----------
+        inputs, outputs : array, shape (k, n, d)
+
+        Returns
+        -------
+        (array (n, d), float or None, (int, int))
+        """
+        u, y = self._check_history(inputs, outputs)
+        best, worth = self.best_input(u, y)
+        pooled = pooled_noise(self._h, self.reference, u, y)
+        if worth is None or pooled is None:
+            return u[best], worth, (best, best + 1)
+        run = settled_runs(self.reference, y, float(np.sum(pooled[0] ** 2)))
+        if run is None or run[2] >= worth:
+            return u[best], worth, (best, best + 1)
+        k0, k1, err = run
+        return u[k0:k1].mean(axis=0), err, (k0, k1)
 
     def _measured_rms(self, y: np.ndarray) -> np.ndarray:
         """Each trial's measured RMS tracking error (Euclidean over the axes), shape (k,)."""

@@ -459,14 +459,20 @@ def status(lib, series: int) -> SeriesStatus:
     return SeriesStatus(rec, trials, floor, converged, diverging, verdict, worth)
 
 
-def _source(rec, done, best: int, floor: float | None) -> str:
+def _source(rec, done, run: tuple[int, int], floor: float | None) -> str:
     where = ", ".join(f"{v:.6g}" for v in rec.origin)
     floor_s = "unknown" if floor is None else f"{floor:.6g}"
-    trial = done[best]
-    which = "final" if best == len(done) - 1 else f"trial {trial.trial}'s (the best)"
+    k0, k1 = run
+    if k1 - k0 > 1:
+        which = f"the mean input of trials {done[k0].trial}-{done[k1 - 1].trial} (settled)"
+        which += f", their mean rms {np.mean([t.rms for t in done[k0:k1]]):.6g}"
+    else:
+        trial = done[k0]
+        which = "final" if k0 == len(done) - 1 else f"trial {trial.trial}'s (the best)"
+        which += f" rms {trial.rms:.6g}"
     return (
-        f"trial series {rec.id}: {len(done)} trials on machine {rec.machine!r}, {which} "
-        f"rms {trial.rms:.6g}, noise floor {floor_s}, started at ({where})"
+        f"trial series {rec.id}: {len(done)} trials on machine {rec.machine!r}, {which}, "
+        f"noise floor {floor_s}, started at ({where})"
     )
 
 
@@ -482,8 +488,11 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
     """Store a series' converged input as a primitive and close the series.
 
     The pair stored is the input of the measured trial with the lowest RMS error
-    (:meth:`primlib.ilc.TrialLearner.best_input`; the last one while the errors fall) with
-    the path, the series'
+    (:meth:`primlib.ilc.TrialLearner.best_input`; the last one while the errors fall), or
+    the mean input of a run of settled trials where that is estimated to leave less
+    (:meth:`primlib.ilc.TrialLearner.stored_input`: near the floor each input carries a
+    copy of the last trial's disturbance, and the mean averages them out), with the path,
+    the series'
     ``origin`` (the absolute start position) as the primitive's ``origin``, and the true
     error that input is estimated to leave as its ``error_rms``; its ``source``
     names the series, its number of trials, final error, noise floor and that position
@@ -522,8 +531,8 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
             f"{done[-1].rms:.6g}, noise floor {st.noise_floor}); run more trials, or force it"
         )
     lrn, inputs, outputs = _history(lib, rec, done)
-    best, worth = lrn.best_input(inputs, outputs)
-    source = _source(rec, done, best, st.noise_floor)
+    u, worth, run = lrn.stored_input(inputs, outputs)
+    source = _source(rec, done, run, st.noise_floor)
     # a finish interrupted between its two transactions left the primitive: reuse it
     prefix = f"trial series {rec.id}:"
     stored = [p.id for p in lib.primitives(rec.machine) if (p.source or "").startswith(prefix)]
@@ -531,7 +540,7 @@ def finish(lib, series: int, *, name: str | None = None, force: bool = False) ->
     if pid is None:
         pid = lib.add(
             rec.trajectory,
-            done[best].input,
+            u,
             machine=rec.machine,
             name=name or rec.name or f"series-{rec.id}",
             source=source,
