@@ -186,11 +186,12 @@ def learn_library(
             true, learner, origin, u0, trials, _LIBRARY_TRIALS * k, stop=True
         )
         # what a finished series stores (primlib.trials.finish): the input of the trial with
-        # the lowest measured error, run until the learner's stop rule (the noise floor) or
-        # ``trials``, and the error the learner estimates it leaves
-        best, worth = learner.best_input(np.stack(inputs), np.stack(outputs))
-        lib.add(traj, inputs[best], "xyz", name=stem, origin=origin, error_rms=worth)
-        own = errors[best] if calm is None else rms(ref - calm.simulate(inputs[best], start=origin))
+        # the lowest measured error, or the mean input of settled trials where that leaves
+        # less (TrialLearner.stored_input), run until the learner's stop rule (the noise
+        # floor) or ``trials``, and the error the learner estimates it leaves
+        stored, worth, run = learner.stored_input(np.stack(inputs), np.stack(outputs))
+        lib.add(traj, stored, "xyz", name=stem, origin=origin, error_rms=worth)
+        own = errors[run[0]] if calm is None else rms(ref - calm.simulate(stored, start=origin))
         placed.append({"stem": stem, "points": pts, "origin": origin, "final": own, "worth": worth})
     return placed
 
