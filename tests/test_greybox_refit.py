@@ -140,3 +140,21 @@ def test_what_the_run_cannot_hold_is_left_alone(friction_case):
     frictionless = dataclasses.replace(gb, coef=np.zeros_like(gb.coef))
     assert refit_greybox(frictionless, pairs) is frictionless
     assert refit_greybox(gb, pairs, steps=0) is gb
+
+
+def test_a_step_to_parameters_no_machine_holds_is_refused_not_raised(friction_case):
+    from primlib.greybox._polish import _simulated as simulated
+    from primlib.greybox._refit import _axis_data, _trial
+
+    _, pairs, gb, _ = friction_case
+    model = forward_model(gb, ripple=True)
+    i = int(simulated(gb)[0][0])
+    rest = dataclasses.replace(gb, coef=gb.coef - simulated(gb)[1])
+    fixed = [rest.terms(p.y - p.y[0], p.origin)[2] for p in pairs]
+    ax, p0 = _axis_data(gb, model, i, pairs, fixed)
+    ok = np.zeros(int(ax.free.sum()))
+    assert np.array_equal(_trial(ax, p0, ok), p0)
+    # a time constant to 1e10 s: denominator coefficients past what a machine takes (1e9)
+    huge = ok.copy()
+    huge[1] = 1e10
+    assert _trial(ax, p0, huge) is None

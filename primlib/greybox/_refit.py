@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from primlib._errors import InputError
 from primlib.greybox._features import TERMS
 from primlib.greybox._polish import _C, _S, _simulated, forward_model
 from primlib.plant import Machine, RealisticMachine
@@ -189,12 +190,21 @@ def _jacobian(ax: _Axis, p: np.ndarray, recs) -> np.ndarray:
 
 def _trial(ax: _Axis, p: np.ndarray, step: np.ndarray) -> np.ndarray | None:
     """``p`` moved by ``step`` on the free parameters; the Stribeck coefficient held at
-    >= 0; None where the plant's or the Coulomb level would not be positive."""
+    >= 0; None where the plant's or the Coulomb level would not be positive, or the plant
+    is no machine (a step of a flat direction -- a disturbance learned into the pairs --
+    took a time constant to 1e5 s: coefficients of 5e9, beyond what a machine holds; the
+    step is refused like one that raises the error, not raised from the warm start)."""
     k = ax.n_plant
     q = p.copy()
     q[ax.free] += step
     q[k + 1] = max(q[k + 1], 0.0)
-    return q if np.all(q[: k + 1] > 0) else None
+    if not np.all(q[: k + 1] > 0):
+        return None
+    try:
+        ax.machine(q, False)
+    except InputError:
+        return None
+    return q
 
 
 def _fit_axis(ax: _Axis, p0: np.ndarray, steps: int, run: tuple | None = None):
