@@ -38,7 +38,12 @@ model's inverse) and **cold** (zero). Reported per setting and kind: the median 
 worst path of the first trial's RMS error of the true (noise-free) motion, mm; and of the
 trials until the true error is within 2x of the path's floor -- the best ILC reaches on that
 path over every start and trial, or 0.1 um where that is lower (on a noise-free machine ILC
-goes on forever) -- with the trial learner running from each start.
+goes on forever) -- with the trial learner running from each start. Under a trial-varying disturbance a first
+trial is one draw of it, which decides a single path's comparison: there each input's first
+trial is also run under 8 draws of its own (the same for every input), and the checks take
+the RMS over them; beside it, a first-trial bound: an input ILC converged on the machine
+without noise and disturbance, run under the same draws (no input fixed before a trial can
+know its draw).
 
 Acceptance (issue 9), checked and printed: warm <= model-only (median) and <= 1.1x
 model-only (worst) everywhere; kinds (i), (ii) under friction, ripple, resonance and all:
@@ -94,6 +99,7 @@ KINDS = ("in place", "translated", "rotated/scaled")
 HARD = ("friction 2 %", "friction 5 %", "ripple 2 %", "resonance 20 Hz", "all")
 EPS = 0.01  # match tolerance, mm
 _LIBRARY_TRIALS = 100  # trial numbers each primitive's series may use (its first is 100 k)
+DRAWS = 8  # first trials per input under a trial-varying disturbance, each a draw of its own
 BOUND_TRIALS = 12  # trials on the calm machine for the first-trial bound
 FLOOR_MIN = 1e-4  # mm: a noise-free machine's "floor" is a precision, not zero
 TABLE = (200.0, 150.0, 40.0)  # the machine's travel, mm: where primitives are placed
@@ -148,7 +154,23 @@ def first_trial_bound(true, calm, nominal, ref, origin, starts, j: int) -> dict:
     best = inputs[int(np.argmin(errors))]
     runner = true.trials(start=origin, first=100_000 + j)
     runner.run(best)
-    return {"first": rms(ref - runner.true[-1]), "own": float(np.min(errors))}
+    return {"first": rms(ref - runner.true[-1]), "own": float(np.min(errors)), "u": best}
+
+
+def first_over_draws(true, inputs: dict, ref, origin, j: int) -> dict[str, float]:
+    """Each input's first trial under ``DRAWS`` draws of the trial-varying disturbance (and
+    noise) of their own, the same draws for every input: the RMS over the draws. One draw
+    decides a single first trial: an input that leaves 0.12 mm by itself met the draw at
+    0.10 where one that leaves 0.10 met it at 0.18 (all together, in place)."""
+    out = {}
+    for s, u in inputs.items():
+        runner = true.trials(start=origin, first=200_000 + DRAWS * j)
+        errors = []
+        for _ in range(DRAWS):
+            runner.run(u)
+            errors.append(rms(ref - runner.true[-1]))
+        out[s] = float(np.sqrt(np.mean(np.square(errors))))
+    return out
 
 
 def learn_library(
@@ -267,9 +289,13 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
                 # disturbance's draw too, the same for every start)
                 own = {s: rms(ref - calm.simulate(u0, start=pts[0])) for s, u0 in starts.items()}
                 floor = max(min(float(np.min(e)) for e in runs.values()), FLOOR_MIN)
-                bound = None
+                bound = draws = None
                 if SETTINGS[name].get("disturbance"):
                     bound = first_trial_bound(true, calm, nominal, ref, pts[0], starts, j)
+                    draws = first_over_draws(
+                        true, starts | {"bound": bound.pop("u")}, ref, pts[0], j
+                    )
+                    bound["draws"] = draws.pop("bound")
                 reach = {s: _trials_to(e, 2 * floor) for s, e in runs.items()}
                 rows[kind].append(
                     {
@@ -278,6 +304,7 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
                         "trials": reach,
                         "floor": floor,
                         "bound": bound,
+                        "draws": draws,
                         "choices": list(ws.choices),
                     }
                 )
@@ -312,15 +339,26 @@ def summarise(result: dict) -> list[str]:
         first = {s: [r["first"][s] for r in rows] for s in STARTS}
         med = {s: statistics.median(v) for s, v in first.items()}
         worst = {s: max(v) for s, v in first.items()}
+        if rows[0].get("draws"):
+            # under a trial-varying disturbance the checks take each input's first trial
+            # over DRAWS draws (RMS), not the one draw its series began with
+            lines.append(
+                f"  {kind:15s} one draw's first trial, median (worst) mm: "
+                + "  ".join(f"{s} {med[s]:.3g} ({worst[s]:.3g})" for s in STARTS)
+            )
+            first = {s: [r["draws"][s] for r in rows] for s in STARTS}
+            med = {s: statistics.median(v) for s, v in first.items()}
+            worst = {s: max(v) for s, v in first.items()}
         tri = {s: statistics.median([r["trials"][s] for r in rows]) for s in STARTS}
         floor = statistics.median([r["floor"] for r in rows])
+        over = f" (RMS over {DRAWS} draws)" if rows[0].get("draws") else ""
         lines.append(
-            f"  {kind:15s} first-trial median (worst) mm: "
+            f"  {kind:15s} first-trial{over} median (worst) mm: "
             + "  ".join(f"{s} {med[s]:.3g} ({worst[s]:.3g})" for s in STARTS)
             + f" | floor {floor:.3g} | trials to 2x floor: "
             + " ".join(f"{s} {tri[s]:g}" for s in STARTS)
         )
-        ratio = [r["first"]["warm"] / r["first"]["model-only"] for r in rows]
+        ratio = [w / m for w, m in zip(first["warm"], first["model-only"], strict=True)]
         lines.append(
             f"  {'':15s} warm/model-only median {statistics.median(ratio):.2f} worst "
             f"{max(ratio):.2f}; warm/refined {med['warm'] / med['refined']:.2f}; "
@@ -333,12 +371,12 @@ def summarise(result: dict) -> list[str]:
                 + "  ".join(f"{s} {v:.3g}" for s, v in own.items())
                 + f"; warm/refined {own['warm'] / own['refined']:.2f}"
             )
-        bound = [r["bound"]["first"] for r in rows if r.get("bound")]
+        bound = [r["bound"]["draws"] for r in rows if r.get("bound")]
         if bound:
             lines.append(
                 f"  {'':15s} first-trial bound (an input converged on the calm machine, own "
                 f"error {statistics.median([r['bound']['own'] for r in rows]):.3g}, under "
-                f"the same draw): median {statistics.median(bound):.3g}, "
+                f"the same draws): median {statistics.median(bound):.3g}, "
                 f"{statistics.median(bound) / med['refined']:.2f}x refined"
             )
         if med["warm"] > med["model-only"] or max(ratio) > 1.1:
