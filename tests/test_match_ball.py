@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+import test_match_index_search as index_tests
 from _reference_search import ScanSearch
 
 from primlib.match import BankIndex, SearchOptions, _ball
@@ -13,6 +14,8 @@ from primlib.match._options import PathPiece
 from primlib.store import Bank
 
 DT = 0.01
+_harmonics = index_tests._harmonics
+novel = index_tests.novel  # the same novel library (a module-scoped fixture)
 
 
 def _rmsd_translation(w: np.ndarray, q: np.ndarray) -> float:
@@ -60,25 +63,6 @@ def test_the_bound_is_below_the_rmsd_and_close_to_it_on_some_windows(d, sub):
 def test_the_radius_is_the_gate_scaled_with_a_small_margin():
     r = _ball.radius(0.1, 25, 16, 3, 50.0)
     assert 0.1 * math.sqrt(25 / 16) < r < 0.1 * math.sqrt(25 / 16) * (1 + 1e-3)
-
-
-def _harmonics(rng, k: int, n: int, d: int = 3) -> list[np.ndarray]:
-    t = np.linspace(0, 1, n)[:, None, None]
-    f = np.arange(1, 7)[None, :, None]
-    out = []
-    for _ in range(k):
-        amp = rng.normal(size=(1, 6, d)) * 50 / f**1.5
-        ph = rng.uniform(0, 2 * np.pi, size=(1, 6, d))
-        out.append((amp * np.sin(2 * np.pi * f * t + ph)).sum(axis=1))
-    return out
-
-
-@pytest.fixture(scope="module")
-def novel():
-    rng = np.random.default_rng(11)
-    bank = BankIndex(Bank.from_samples(_harmonics(rng, 40, 400), DT))
-    path = _harmonics(rng, 1, 600)[0]
-    return bank, PathPiece(path, (len(path) - 1) * DT)
 
 
 PIECES = [(0.0, 0.05), (0.2, 0.24), (0.5, 0.58), (0.3, 0.5), (0.7, 0.73)]
