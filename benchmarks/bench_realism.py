@@ -38,12 +38,12 @@ model's inverse) and **cold** (zero). Reported per setting and kind: the median 
 worst path of the first trial's RMS error of the true (noise-free) motion, mm; and of the
 trials until the true error is within 2x of the path's floor -- the best ILC reaches on that
 path over every start and trial, or 0.1 um where that is lower (on a noise-free machine ILC
-goes on forever) -- with the trial learner running from each start. Under a trial-varying disturbance a first
-trial is one draw of it, which decides a single path's comparison: there each input's first
-trial is also run under 8 draws of its own (the same for every input), and the checks take
-the RMS over them; beside it, a first-trial bound: an input ILC converged on the machine
-without noise and disturbance, run under the same draws (no input fixed before a trial can
-know its draw).
+goes on forever) -- with the trial learner running from each start. Under a trial-varying
+disturbance a first trial is one draw of it, which decides a single path's comparison: there
+each input's first trial is also run under 8 draws of its own (the same for every input),
+and the checks take the RMS over them; beside it, a first-trial bound: an input ILC
+converged on the machine without noise and disturbance, run under the same draws (no input
+fixed before a trial can know its draw).
 
 Acceptance (issue 9), checked and printed: warm <= model-only (median) and <= 1.1x
 model-only (worst) everywhere; kinds (i), (ii) under friction, ripple, resonance and all:

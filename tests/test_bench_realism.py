@@ -15,12 +15,17 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import bench_realism  # noqa: E402
 
 
-@pytest.mark.slow
-def test_a_tiny_run_measures_every_start_on_every_kind():
-    out = bench_realism.main(
-        ["--settings", "ripple 2 %", "--paths", "1", "--trials", "2", "--library-trials", "3",
+def _tiny(setting: str) -> dict:
+    """One path per kind, two trials per start, a library of 3 primitives of 3 trials."""
+    return bench_realism.main(
+        ["--settings", setting, "--paths", "1", "--trials", "2", "--library-trials", "3",
          "--primitives", "3"]
     )  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_tiny_run_measures_every_start_on_every_kind():
+    out = _tiny("ripple 2 %")
     (res,) = out["results"]
     assert res["setting"] == "ripple 2 %"
     for kind in bench_realism.KINDS:
@@ -51,10 +56,7 @@ def test_settings_are_named_and_all_together_can_be_asked_for_alone():
 
 @pytest.mark.slow
 def test_under_a_disturbance_the_first_trial_bound_is_an_input_better_than_every_start():
-    out = bench_realism.main(
-        ["--settings", "disturbance", "--paths", "1", "--trials", "2", "--library-trials", "3",
-         "--primitives", "3"]
-    )  # fmt: skip
+    out = _tiny("disturbance")
     for kind in bench_realism.KINDS:
         (row,) = out["results"][0]["rows"][kind]
         bound = row["bound"]
