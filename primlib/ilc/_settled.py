@@ -30,13 +30,13 @@ Windows of at least ``MIN_RUN`` consecutive settled trials -- measured RMS withi
 median of the series' second half: a draw that happened to cancel makes the lowest trial no
 scale for the others -- are candidates; the one of the least err is kept only where that is
 below what the best trial is estimated to be worth
-(:meth:`primlib.ilc.TrialLearner.best_input`) by half (``MEAN_GAIN``), and only in a series
-that reached its floor: the pooled floor at least that worth. Averaging removes what varies
-from trial to trial; where little does, the identity above is all the estimate rests on, and
-a machine with friction breaks it (the mean of the inputs is not the input of the mean
-error): on the friction 5 % library, no noise, the model's error in the moved pairs passed
-for a floor and a mean estimated at 1.5e-5 mm (0.63x the best trial's 2.4e-5) left 1.0e-4,
-and the rotated paths' model-only input fitted to those pairs went 0.21 -> 0.66 um.
+(:meth:`primlib.ilc.TrialLearner.best_input`) by a clear margin (below ``MEAN_GAIN`` = 0.4
+of it). The estimate rests on the identity above, a linear machine's, and on a floor that the
+model's error in the moved pairs can pass for where nothing varies from trial to trial: on
+the friction 5 % library, without noise, means estimated at 0.63 and 0.5 of their best
+trials left 4x more (1.0e-4 mm for 2.4e-5) and as much, and the rotated paths' model-only
+input fitted to those pairs went 0.21 -> 0.66 um; the all-together series' means, estimated
+at 0.19-0.46 of their best trials (13 of 14 below 0.3), left 1.5-5x less.
 
 Measured on the realism benchmark's machine with every departure (friction, ripple, noise,
 a 2 % 2 Hz trial-varying disturbance, a 20 Hz mode; ``bench_realism.py``'s library series,
