@@ -514,8 +514,8 @@ class TrialLearner:
         # the mean's estimate rests on r - G mean(u) = mean(e) + mean(n), a linear machine's
         # identity, and on a floor the model's error in the moved pairs can pass for: it must
         # be clearly better (``MEAN_GAIN``). Friction 5 %, no noise: means estimated at 0.5
-        # and 0.63 of the best trial left as much or 4x more; the all-together series' means,
-        # 0.19-0.46 of their best trials, left 1.5-5x less
+        # and 0.63 of the best trial left as much or 4x more; the all-together series' means
+        # are at 0.19-0.46 of their best trials (module notes of ._settled)
         sigma2 = float(np.sum(pooled[0] ** 2))
         run = settled_runs(self.reference, y, sigma2)
         if run is None or run[2] >= MEAN_GAIN * worth:

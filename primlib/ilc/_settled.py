@@ -35,14 +35,14 @@ of it). The estimate rests on the identity above, a linear machine's, and on a f
 model's error in the moved pairs can pass for where nothing varies from trial to trial: on
 the friction 5 % library, without noise, means estimated at 0.63 and 0.5 of their best
 trials left 4x more (1.0e-4 mm for 2.4e-5) and as much, and the rotated paths' model-only
-input fitted to those pairs went 0.21 -> 0.66 um; the all-together series' means, estimated
-at 0.19-0.46 of their best trials (13 of 14 below 0.3), left 1.5-5x less.
+input fitted to those pairs went 0.21 -> 0.66 um; the all-together series' means are
+estimated at 0.19-0.46 of their best trials (13 of 14 below 0.3).
 
-Measured on the realism benchmark's machine with every departure (friction, ripple, noise,
-a 2 % 2 Hz trial-varying disturbance, a 20 Hz mode; ``bench_realism.py``'s library series,
-first four primitives, scratch): the best trial's input leaves 0.034 / 0.10 / 0.12 / 0.15 mm
-by itself, the mean kept here 0.013 / 0.048 / 0.022 / 0.034 mm (estimated 0.017 / 0.020 /
-0.022 / 0.018).
+Measured with ``python benchmarks/bench_realism.py --settings "all together"`` (every
+departure: friction, ripple, noise, a 2 % 2 Hz trial-varying disturbance, a 20 Hz mode): the
+stored inputs of the three paths run in place leave 0.038 mm by themselves (median), where
+the best trials' inputs left 0.24; scratch, the first four primitives' series: 0.034 / 0.10 /
+0.12 / 0.15 mm for the best trial's input against 0.013 / 0.048 / 0.022 / 0.034 for a mean.
 """
 
 from __future__ import annotations
