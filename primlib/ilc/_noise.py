@@ -54,7 +54,7 @@ from primlib._errors import InputError
 from primlib.ilc._laws import law_from_name
 from primlib.ilc._learn import _prepare, _update
 from primlib.ilc._qfilter import QFilter
-from primlib.ilc._settled import settled_runs
+from primlib.ilc._settled import settled_runs, trial_rms
 
 __all__ = ["TrialLearner", "TrialUpdate", "NoiseEstimate", "estimate_noise", "pooled_noise"]
 
@@ -187,11 +187,6 @@ def estimate_noise(
     )
 
 
-def _trial_rms(reference: np.ndarray, outputs: np.ndarray) -> np.ndarray:
-    """Each trial's RMS tracking error (Euclidean over the axes), shape (k,)."""
-    return np.sqrt(np.mean(np.sum((reference[None] - outputs) ** 2, axis=2), axis=1))
-
-
 def pooled_noise(
     h: np.ndarray, reference: np.ndarray, inputs: np.ndarray, outputs: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray] | None:
@@ -206,7 +201,7 @@ def pooled_noise(
     judged by must not come from that trial's pair alone, which its low measured error
     selected (the pair whose two disturbances happened to agree). None: no settled pair.
     """
-    rms = _trial_rms(reference, outputs)
+    rms = trial_rms(reference, outputs)
     settled = rms <= 3.0 * rms.min()
     ends = np.flatnonzero(settled[1:] & settled[:-1]) + 2
     if ends.size == 0:
@@ -444,17 +439,17 @@ class TrialLearner:
         float or None
         """
         u, y = self._check_history(inputs, outputs)
-        return self._worth(u, y, u.shape[0])
+        return self._worth(u, y, u.shape[0], pooled_noise(self._h, self.reference, u, y))
 
-    def _worth(self, u: np.ndarray, y: np.ndarray, upto: int) -> float | None:
-        """input_error of trial ``upto - 1``'s input; the noise pooled over all trials."""
+    def _worth(self, u: np.ndarray, y: np.ndarray, upto: int, pooled) -> float | None:
+        """input_error of trial ``upto - 1``'s input; ``pooled``: the noise pooled over all
+        trials (:func:`pooled_noise` of ``u``, ``y``)."""
         if upto < 2:
             return None
         # at least the last two trials, moved to the last input with the model, even where
         # the update's window took one (a large last move): a worth needs a noise estimate
         m = max(self.window(u[:upto], y[:upto]), 2)
         est = estimate_noise(self._h, self.reference, u[upto - m : upto], y[upto - m : upto])
-        pooled = pooled_noise(self._h, self.reference, u, y)
         if pooled is not None:
             # the noise is the machine's, not the trial's: every settled pair says what it
             # is (pooled_noise), where the last m alone are one or two draws
@@ -486,15 +481,17 @@ class TrialLearner:
         (int, float or None)
         """
         u, y = self._check_history(inputs, outputs)
+        return self._best(u, y, pooled_noise(self._h, self.reference, u, y))
+
+    def _best(self, u: np.ndarray, y: np.ndarray, pooled) -> tuple[int, float | None]:
         best = int(np.argmin(self._measured_rms(y)))
-        return best, self._worth(u, y, best + 1)
+        return best, self._worth(u, y, best + 1, pooled)
 
     def stored_input(self, inputs, outputs) -> tuple[np.ndarray, float | None, tuple[int, int]]:
         """(input, error, (k0, k1)): what a finished series stores -- the best trial's input
         (:meth:`best_input`; (k0, k1) = (best, best + 1)), or the mean of the inputs of the
         settled trials k0..k1-1 where that is estimated to leave less than ``MEAN_GAIN`` of
-        it
-        (:mod:`primlib.ilc._settled`: near the floor each trial's input carries a copy of
+        it (:mod:`primlib.ilc._settled`: near the floor each trial's input carries a copy of
         the last trial's non-repeatable part, and their mean averages the copies out) --
         and the true error it is estimated to leave.
 
@@ -507,8 +504,8 @@ class TrialLearner:
         (array (n, d), float or None, (int, int))
         """
         u, y = self._check_history(inputs, outputs)
-        best, worth = self.best_input(u, y)
         pooled = pooled_noise(self._h, self.reference, u, y)
+        best, worth = self._best(u, y, pooled)
         if worth is None or pooled is None:
             return u[best], worth, (best, best + 1)
         # the mean's estimate rests on r - G mean(u) = mean(e) + mean(n), a linear machine's
@@ -525,7 +522,7 @@ class TrialLearner:
 
     def _measured_rms(self, y: np.ndarray) -> np.ndarray:
         """Each trial's measured RMS tracking error (Euclidean over the axes), shape (k,)."""
-        return _trial_rms(self.reference, y)
+        return trial_rms(self.reference, y)
 
     def assess(self, inputs, outputs) -> tuple[NoiseEstimate | None, bool, bool]:
         """(noise estimate, converged, diverging) after the last recorded trial.

@@ -49,10 +49,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MIN_RUN", "settled_runs"]
+__all__ = ["MIN_RUN", "settled_runs", "trial_rms"]
 
 MIN_RUN = 4  # trials averaged at least (a mean of fewer is judged by too few draws)
 _SETTLED = 3.0  # a settled trial's measured RMS within this of the second half's median
+
+
+def trial_rms(reference: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+    """Each trial's RMS tracking error (Euclidean over the axes), shape (k,)."""
+    return np.sqrt(np.mean(np.sum((reference[None] - outputs) ** 2, axis=2), axis=1))
 
 
 def settled_runs(reference: np.ndarray, outputs: np.ndarray, sigma2: float):
@@ -70,7 +75,7 @@ def settled_runs(reference: np.ndarray, outputs: np.ndarray, sigma2: float):
     """
     err = reference[None] - outputs  # (k, n, d)
     k, n = err.shape[:2]
-    rms = np.sqrt(np.mean(np.sum(err**2, axis=2), axis=1))
+    rms = trial_rms(reference, outputs)
     settled = rms <= _SETTLED * np.median(rms[k // 2 :])
     # a window [k0, k1) holds settled trials only: k0 at or after the last unsettled one
     unsettled = np.flatnonzero(~settled)
