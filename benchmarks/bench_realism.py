@@ -141,20 +141,18 @@ def run_series(true, learner, origin, u0, trials: int, first_trial: int, stop: b
     return np.array(errors), inputs, outputs
 
 
-def first_trial_bound(true, calm, nominal, ref, origin, starts, j: int) -> dict:
-    """What the best first input reaches under a trial-varying disturbance: an input ILC
-    converged on the calm machine (no noise, no disturbance: ``BOUND_TRIALS`` trials from
-    the best of the path's first inputs, the one of least own error kept) run as the first
-    trial with the draw every start got. No input fixed before a trial knows its draw, so
-    none does much better than this one (it tracks the calm machine to ``own``); a check
-    asking a first trial below it cannot be met by any input."""
+def bound_input(calm, nominal, ref, origin, starts) -> tuple[np.ndarray, float]:
+    """(input, its own error): the input of the first-trial bound under a trial-varying
+    disturbance, ILC converged on the calm machine (no noise, no disturbance:
+    ``BOUND_TRIALS`` trials from the path's first input of least own error, the best
+    kept). No input fixed before a trial knows its draw, so none does much better under
+    the draws (:func:`first_over_draws`) than this one; a check asking a first trial below
+    it cannot be met by any input."""
     learner = TrialLearner(nominal, ref)
     u0 = min(starts.values(), key=lambda u: rms(ref - calm.simulate(u, start=origin)))
     errors, inputs, _ = run_series(calm, learner, origin, u0, BOUND_TRIALS, 0)
-    best = inputs[int(np.argmin(errors))]
-    runner = true.trials(start=origin, first=100_000 + j)
-    runner.run(best)
-    return {"first": rms(ref - runner.true[-1]), "own": float(np.min(errors)), "u": best}
+    best = int(np.argmin(errors))
+    return inputs[best], float(errors[best])
 
 
 def first_over_draws(true, inputs: dict, ref, origin, j: int) -> dict[str, float]:
@@ -291,11 +289,9 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
                 floor = max(min(float(np.min(e)) for e in runs.values()), FLOOR_MIN)
                 bound = draws = None
                 if SETTINGS[name].get("disturbance"):
-                    bound = first_trial_bound(true, calm, nominal, ref, pts[0], starts, j)
-                    draws = first_over_draws(
-                        true, starts | {"bound": bound.pop("u")}, ref, pts[0], j
-                    )
-                    bound["draws"] = draws.pop("bound")
+                    u_b, own_b = bound_input(calm, nominal, ref, pts[0], starts)
+                    draws = first_over_draws(true, starts | {"bound": u_b}, ref, pts[0], j)
+                    bound = {"own": own_b, "draws": draws.pop("bound")}
                 reach = {s: _trials_to(e, 2 * floor) for s, e in runs.items()}
                 rows[kind].append(
                     {
@@ -329,6 +325,25 @@ def _trials_to(errors: np.ndarray, target: float) -> float:
     return float(hit[0] + 1) if hit.size else float("inf")
 
 
+def _spread(rows: list[dict], key: str) -> tuple[dict, dict, dict]:
+    """Per start: the paths' first trials (``key``: one draw, "first", or the RMS over the
+    draws, "draws"), their median and their worst."""
+    first = {s: [r[key][s] for r in rows] for s in STARTS}
+    return (
+        first,
+        {s: statistics.median(v) for s, v in first.items()},
+        {s: max(v) for s, v in first.items()},
+    )
+
+
+def _unreachable(bound: float | None, goal: float) -> str:
+    """Where even the best first input (the bound) is above a check's goal, no input meets
+    it: said beside the failed check."""
+    if bound is None or bound <= goal:
+        return ""
+    return f" (unreachable: the first-trial bound is {bound:.3g})"
+
+
 def summarise(result: dict) -> list[str]:
     """Printed lines and acceptance checks of one setting."""
     lines, fails = [], []
@@ -336,22 +351,19 @@ def summarise(result: dict) -> list[str]:
     for kind, rows in result["rows"].items():
         if not rows:
             continue
-        first = {s: [r["first"][s] for r in rows] for s in STARTS}
-        med = {s: statistics.median(v) for s, v in first.items()}
-        worst = {s: max(v) for s, v in first.items()}
-        if rows[0].get("draws"):
+        drawn = bool(rows[0].get("draws"))
+        if drawn:
             # under a trial-varying disturbance the checks take each input's first trial
             # over DRAWS draws (RMS), not the one draw its series began with
+            _, med, worst = _spread(rows, "first")
             lines.append(
                 f"  {kind:15s} one draw's first trial, median (worst) mm: "
                 + "  ".join(f"{s} {med[s]:.3g} ({worst[s]:.3g})" for s in STARTS)
             )
-            first = {s: [r["draws"][s] for r in rows] for s in STARTS}
-            med = {s: statistics.median(v) for s, v in first.items()}
-            worst = {s: max(v) for s, v in first.items()}
+        first, med, worst = _spread(rows, "draws" if drawn else "first")
         tri = {s: statistics.median([r["trials"][s] for r in rows]) for s in STARTS}
         floor = statistics.median([r["floor"] for r in rows])
-        over = f" (RMS over {DRAWS} draws)" if rows[0].get("draws") else ""
+        over = f" (RMS over {DRAWS} draws)" if drawn else ""
         lines.append(
             f"  {kind:15s} first-trial{over} median (worst) mm: "
             + "  ".join(f"{s} {med[s]:.3g} ({worst[s]:.3g})" for s in STARTS)
@@ -371,35 +383,24 @@ def summarise(result: dict) -> list[str]:
                 + "  ".join(f"{s} {v:.3g}" for s, v in own.items())
                 + f"; warm/refined {own['warm'] / own['refined']:.2f}"
             )
-        bound = [r["bound"]["draws"] for r in rows if r.get("bound")]
-        if bound:
+        bound = statistics.median([r["bound"]["draws"] for r in rows]) if drawn else None
+        if drawn:
             lines.append(
                 f"  {'':15s} first-trial bound (an input converged on the calm machine, own "
                 f"error {statistics.median([r['bound']['own'] for r in rows]):.3g}, under "
-                f"the same draws): median {statistics.median(bound):.3g}, "
-                f"{statistics.median(bound) / med['refined']:.2f}x refined"
+                f"the same draws): median {bound:.3g}, {bound / med['refined']:.2f}x refined"
             )
         if med["warm"] > med["model-only"] or max(ratio) > 1.1:
             fails.append(f"{name}, {kind}: warm worse than model-only")
-        # where even the best first input (the bound) is above the goal, no input meets it
-        out = (
-            f" (unreachable: the first-trial bound is {statistics.median(bound):.3g})"
-            if bound
-            else ""
-        )
         if name in HARD and kind != "rotated/scaled":
             goal = min(0.3 * med["refined"], 3 * floor)
             if med["warm"] > goal:
                 fails.append(
-                    f"{name}, {kind}: warm > 0.3x refined or > 3x floor"
-                    + (out if bound and statistics.median(bound) > goal else "")
+                    f"{name}, {kind}: warm > 0.3x refined or > 3x floor" + _unreachable(bound, goal)
                 )
         if name in HARD and kind == "rotated/scaled" and med["warm"] > 0.7 * med["refined"]:
             goal = 0.7 * med["refined"]
-            fails.append(
-                f"{name}, {kind}: warm > 0.7x refined"
-                + (out if bound and statistics.median(bound) > goal else "")
-            )
+            fails.append(f"{name}, {kind}: warm > 0.7x refined" + _unreachable(bound, goal))
         if tri["model-only"] >= 2 and tri["warm"] > tri["model-only"] - 1:
             fails.append(f"{name}, {kind}: warm needs no fewer trials than model-only")
         if name == "linear" and med["warm"] > 1e-4:

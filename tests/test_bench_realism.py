@@ -61,9 +61,9 @@ def test_under_a_disturbance_the_first_trial_bound_is_an_input_better_than_every
         (row,) = out["results"][0]["rows"][kind]
         bound = row["bound"]
         # ILC on the calm machine from the start of least own error keeps its best trial:
-        # never worse than that start, and it leaves the disturbance's draw in the first trial
+        # never worse than that start, and it leaves the disturbance's draws in its first trials
         assert bound["own"] <= min(row["own"].values()) * (1 + 1e-9)
-        assert np.isfinite(bound["first"]) and bound["first"] > bound["own"]
+        assert np.isfinite(bound["draws"]) and bound["draws"] > bound["own"]
         # each start's first trial over draws of its own; the bound under the same draws
         # below the nominal inverse's (a model 8 % off, a 12 ms lag it does not know)
         assert set(row["draws"]) == set(bench_realism.STARTS)
