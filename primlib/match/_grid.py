@@ -28,7 +28,6 @@ from scipy.ndimage import maximum_filter1d
 
 from primlib.match._bank import BankIndex
 from primlib.match._bounds import gyration_bound
-from primlib.match._interp import coefficients
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import suppress
@@ -42,21 +41,44 @@ def scale_grid(lo: float, hi: float, ratio: float) -> np.ndarray:
     return np.geomspace(lo, hi, n) if n > 1 else np.array([lo])
 
 
-def _coefficient_table(points: np.ndarray, offsets: np.ndarray) -> tuple:
+def _coefficient_table(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """Every interval's first sample p1 and Catmull-Rom coefficients (c1, c2, c3) with the
-    neighbours :func:`._interp.cubic_at` takes (clamped at the curve's ends), one row per
-    interval, curve by curve (rows of (p1, c1, c2, c3), shape (intervals, 4, d)), and each
-    curve's first row: (first, table)."""
-    counts = np.diff(offsets)
-    spans = np.maximum(counts - 1, 0)
-    first = np.concatenate([[0], np.cumsum(spans)])[:-1]
-    curve = np.repeat(np.arange(counts.size), spans)
-    i = np.arange(int(spans.sum())) - np.repeat(first, spans)
-    start = offsets[:-1][curve]
-    i1 = start + i
-    i0, i3 = start + np.maximum(i - 1, 0), start + np.minimum(i + 2, counts[curve] - 1)
-    p0, p1, p2, p3 = (points.take(j, axis=0) for j in (i0, i1, i1 + 1, i3))
-    return first, np.stack([p1, *coefficients(p0, p1, p2, p3)], axis=1)
+    neighbours :func:`._interp.cubic_at` takes (clamped at the curve's ends), coefficient by
+    coefficient, one row per stored sample (row j: the interval j -> j + 1 of its curve;
+    a curve's last row is no interval and is never read): shape (4, N, d).
+
+    The neighbours are the rows either side (slices, not gathers), then each curve's end
+    rows clamped; the coefficients are :func:`._interp.coefficients`' operations in their
+    order, written in place: the same numbers to the last bit as gathering the neighbours
+    of every interval (a third of the time: 1.4 s on 1,000 primitives of 2,000 samples,
+    once per segmentation), and each coefficient contiguous for :meth:`GridSearch._resample`.
+    """
+    n, d = points.shape
+    tab = np.empty((4, n, d))
+    if n < 2:
+        tab[:] = points
+        return tab
+    p0, p2, p3 = np.empty_like(points), np.empty_like(points), np.empty_like(points)
+    p0[1:], p0[0] = points[:-1], points[0]
+    p2[:-1], p2[-1] = points[1:], points[-1]
+    p3[:-2], p3[-2:] = points[2:], points[-1]
+    heads, ends = offsets[:-1], offsets[1:]
+    long = ends - heads >= 2
+    p0[heads[long]] = points[heads[long]]  # a curve's first interval: p0 = p1
+    p3[ends[long] - 2] = points[ends[long] - 1]  # its last: p3 = p2
+    tab[0] = points
+    np.subtract(p2, p0, out=tab[1])  # c1 = p2 − p0
+    c2 = tab[2]  # c2 = 2 p0 − 5 p1 + 4 p2 − p3, left to right
+    np.multiply(p0, 2.0, out=c2)
+    c2 -= 5.0 * points
+    c2 += 4.0 * p2
+    c2 -= p3
+    c3 = tab[3]  # c3 = 3 (p1 − p2) + p3 − p0, left to right
+    np.subtract(points, p2, out=c3)
+    c3 *= 3.0
+    c3 += p3
+    c3 -= p0
+    return tab
 
 
 def _cumsums(x: np.ndarray):
@@ -90,7 +112,7 @@ class GridSearch:
     opts: SearchOptions
     stats: SearchStats = field(default_factory=SearchStats)
     name: ClassVar[str] = "grid"
-    _table: tuple | None = field(default=None, init=False, repr=False)
+    _table: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def _windows(self, path: PathPiece, a: float, b: float) -> Iterator[tuple]:
         """Yield, per time scale, the resampled bank and its valid windows."""
@@ -122,19 +144,22 @@ class GridSearch:
         per point (each scale resamples the whole bank), the same numbers to the last bit."""
         if self._table is None:
             self._table = _coefficient_table(self.bank.points, self.bank.offsets)
-        first, table = self._table
+        p1, c1, c2, c3 = self._table
         count = self.bank.counts[prim]
         x = np.clip(x, 0.0, count - 1)
         i = np.minimum(np.floor(x).astype(np.int64), count - 2)
         f = (x - i)[:, None]
-        rows = table.take(first[prim] + i, axis=0)  # (m, 4, d): one gather
-        # p1 + 0.5 f (c1 + f (c2 + f c3)), its operations in their order, in place
-        val = rows[:, 3] * f
-        val += rows[:, 2]
+        rows = self.bank.offsets[prim] + i
+        # p1 + 0.5 f (c1 + f (c2 + f c3)), its operations in their order, in place, each
+        # coefficient gathered contiguous (one (m, 4, d) gather and arithmetic on its
+        # strided columns took 2.7x as long)
+        val = c3.take(rows, axis=0)
         val *= f
-        val += rows[:, 1]
+        val += c2.take(rows, axis=0)
+        val *= f
+        val += c1.take(rows, axis=0)
         val *= 0.5 * f
-        val += rows[:, 0]
+        val += p1.take(rows, axis=0)
         return val
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
