@@ -91,7 +91,7 @@ class LoopSearch(GridSearch):
 
     name: ClassVar[str] = "loop"
 
-    def _score(self, res, starts, q, qc, sq, k, rotation, gate) -> np.ndarray:
+    def _score(self, res, starts, q, qc, sq, k, rotation, gate, scratch=None) -> np.ndarray:
         self.stats.scored += starts.size
         return np.array([kabsch(res[m : m + k], q, rotation=rotation).rmsd for m in starts])
 

@@ -81,27 +81,58 @@ def _coefficient_table(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     return tab
 
 
-def _cumsums(x: np.ndarray):
-    cs = np.zeros((x.shape[0] + 1, x.shape[1]))
+class _Scratch:
+    """Arrays kept by name from one time scale to the next (the first scale, the shortest
+    stride, needs the largest): the grid's arrays of every resampled point (3.5 M points a
+    scale on 1,000 primitives) written into the same memory, not fresh each scale."""
+
+    def __init__(self) -> None:
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def __call__(self, name: str, shape: tuple[int, ...], dtype: type = float) -> np.ndarray:
+        size = math.prod(shape)
+        buf = self._arrays.get(name)
+        if buf is None or buf.size < size:
+            buf = self._arrays[name] = np.empty(size, dtype)
+        return buf[:size].reshape(shape)
+
+
+def _array(scratch: _Scratch | None, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    return np.empty(shape) if scratch is None else scratch(name, shape)
+
+
+def _cumsums(x: np.ndarray, scratch: _Scratch | None = None):
+    """Cumulative sums of x and x², a zero row first, shape (n + 1, d) each."""
+    n, d = x.shape
+    cs, cs2 = _array(scratch, "cs", (n + 1, d)), _array(scratch, "cs2", (n + 1, d))
+    cs[0] = cs2[0] = 0.0
     np.cumsum(x, axis=0, out=cs[1:])
-    cs2 = np.zeros_like(cs)
-    np.cumsum(x * x, axis=0, out=cs2[1:])
+    np.cumsum(np.multiply(x, x, out=_array(scratch, "tmp", (n, d))), axis=0, out=cs2[1:])
     return cs, cs2
 
 
-def _window_moments(cs: np.ndarray, cs2: np.ndarray, starts: np.ndarray, k: int, per_axis: bool):
+def _window_moments(cs: np.ndarray, cs2: np.ndarray, starts: np.ndarray, k: int,
+                    per_axis: bool, scratch: _Scratch | None = None):  # fmt: skip
     """Σ|p − p̄|² of the windows [m, m + k) from cumulative sums (per axis if asked).
 
     Taken at every position with slices, then gathered at ``starts`` (once, after the sum
     over the axes): the same operations on the same numbers as on the gathered sums, four
     (m, d) gathers fewer (the windows are nearly every position: 37 M a query on 1,000
     primitives, a third of the grid's time)."""
-    sx = cs[k:] - cs[:-k]
-    sp = cs2[k:] - cs2[:-k]
+    n, d = cs.shape[0] - k, cs.shape[1]
+    sx = np.subtract(cs[k:], cs[:-k], out=_array(scratch, "tmp", (n, d)))
+    sp = np.subtract(cs2[k:], cs2[:-k], out=_array(scratch, "sp", (n, d)))
     sx *= sx
     sx /= k
     sp -= sx  # sxx − sx·sx / k, in place
-    return sp[starts] if per_axis else sp.sum(axis=1)[starts]
+    if per_axis:
+        return sp[starts]
+    # the sum over the axes column by column: sum(axis=1)'s additions, in its order (a
+    # reduction over 2-3 numbers a row took 1.6x as long)
+    tot = np.add(sp[:, 0], sp[:, 1], out=_array(scratch, "tot", (n,)))
+    for j in range(2, d):
+        tot += sp[:, j]
+    return tot[starts]
 
 
 @dataclass
@@ -114,8 +145,10 @@ class GridSearch:
     name: ClassVar[str] = "grid"
     _table: np.ndarray | None = field(default=None, init=False, repr=False)
 
-    def _windows(self, path: PathPiece, a: float, b: float) -> Iterator[tuple]:
-        """Yield, per time scale, the resampled bank and its valid windows."""
+    def _windows(self, path: PathPiece, a: float, b: float,
+                 scratch: _Scratch | None = None) -> Iterator[tuple]:  # fmt: skip
+        """Yield, per time scale, the resampled bank and its valid windows (the resampled
+        bank in ``scratch``'s memory when given: valid until the next scale)."""
         bank, k = self.bank, self.opts.grid_points
         dq = (b - a) * path.duration / bank.dt
         counts = bank.counts
@@ -130,14 +163,15 @@ class GridSearch:
             base = np.concatenate([[0], np.cumsum(n_res)])
             prim = np.repeat(ok, n_res)
             local = np.arange(base[-1]) - np.repeat(base[:-1], n_res)
-            res = self._resample(prim, local * h)
+            res = self._resample(prim, local * h, scratch)
             first = np.concatenate([[0], np.cumsum(n_start)])
             s_local = np.arange(first[-1]) - np.repeat(first[:-1], n_start)
             starts = np.repeat(base[:-1], n_start) + s_local
             s_prim = np.repeat(ok, n_start)
             yield res, starts, s_prim, s_local * h, dur
 
-    def _resample(self, prim: np.ndarray, x: np.ndarray) -> np.ndarray:
+    def _resample(self, prim: np.ndarray, x: np.ndarray,
+                  scratch: _Scratch | None = None) -> np.ndarray:  # fmt: skip
         """:func:`._interp.cubic_at` of primitives ``prim`` at sample indices ``x``, from a
         table of every interval's Catmull-Rom coefficients (:func:`_coefficient_table`,
         built on the first call, kept): no neighbour gathers and no coefficient arithmetic
@@ -153,13 +187,15 @@ class GridSearch:
         # p1 + 0.5 f (c1 + f (c2 + f c3)), its operations in their order, in place, each
         # coefficient gathered contiguous (one (m, 4, d) gather and arithmetic on its
         # strided columns took 2.7x as long)
-        val = c3.take(rows, axis=0)
+        shape = (rows.size, p1.shape[1])
+        val = np.take(c3, rows, axis=0, out=_array(scratch, "res", shape), mode="clip")
+        tmp = _array(scratch, "tmp", shape)  # mode "clip": no buffer (rows are in range)
         val *= f
-        val += c2.take(rows, axis=0)
+        val += np.take(c2, rows, axis=0, out=tmp, mode="clip")
         val *= f
-        val += c1.take(rows, axis=0)
+        val += np.take(c1, rows, axis=0, out=tmp, mode="clip")
         val *= 0.5 * f
-        val += p1.take(rows, axis=0)
+        val += np.take(p1, rows, axis=0, out=tmp, mode="clip")
         return val
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
@@ -171,9 +207,10 @@ class GridSearch:
         sq = (qc * qc).sum(axis=0) if rotation == "z" else float((qc * qc).sum())
         pool: list[Candidate] = []
         self.stats.queries += 1
-        for res, starts, s_prim, x0, dur in self._windows(path, a, b):
+        scratch = _Scratch()
+        for res, starts, s_prim, x0, dur in self._windows(path, a, b, scratch):
             gate = eps + self._slack(s_prim, x0, dur, k)
-            rmsd = self._score(res, starts, q, qc, sq, k, rotation, gate)
+            rmsd = self._score(res, starts, q, qc, sq, k, rotation, gate, scratch)
             self.stats.windows += starts.size
             ok = np.flatnonzero(rmsd < gate)
             top = ok[np.argsort(rmsd[ok])[: 8 * self.opts.seeds]]
@@ -215,14 +252,16 @@ class GridSearch:
         steps = self.bank.steps()
         return maximum_filter1d(steps, size=size, origin=back - size // 2, mode="constant")
 
-    def _score(self, res, starts, q, qc, sq, k, rotation, gate) -> np.ndarray:
+    def _score(self, res, starts, q, qc, sq, k, rotation, gate, scratch=None) -> np.ndarray:
         """RMSD of every window that can pass ``gate``; +inf for the others, which the
-        radius-of-gyration bound |g(P) − g(Q)| ≤ rmsd proves to be at or above it."""
+        radius-of-gyration bound |g(P) − g(Q)| ≤ rmsd proves to be at or above it. ``res``
+        is centred in place."""
         # centre per window via cumulative sums; the cross term needs no centring (Σ q̃ = 0)
-        res_c = res - res.mean(axis=0)
-        cs, cs2 = _cumsums(res_c)
+        res -= res.mean(axis=0)
+        res_c = res
+        cs, cs2 = _cumsums(res_c, scratch)
         per_axis = rotation == "z"
-        sp = _window_moments(cs, cs2, starts, k, per_axis=per_axis)
+        sp = _window_moments(cs, cs2, starts, k, per_axis, scratch)
         tot = sp.sum(axis=1) if per_axis else sp
         live = np.flatnonzero(gyration_bound(tot, float(np.sum(sq)), k) < gate)
         out = np.full(starts.size, np.inf)
