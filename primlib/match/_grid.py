@@ -111,8 +111,14 @@ def _cumsums(x: np.ndarray, scratch: _Scratch | None = None):
     return cs, cs2
 
 
-def _window_moments(cs: np.ndarray, cs2: np.ndarray, starts: np.ndarray, k: int,
-                    per_axis: bool, scratch: _Scratch | None = None):  # fmt: skip
+def _window_moments(
+    cs: np.ndarray,
+    cs2: np.ndarray,
+    starts: np.ndarray,
+    k: int,
+    per_axis: bool,
+    scratch: _Scratch | None = None,
+):
     """Σ|p − p̄|² of the windows [m, m + k) from cumulative sums (per axis if asked).
 
     Taken at every position with slices, then gathered at ``starts`` (once, after the sum
@@ -148,8 +154,9 @@ class GridSearch:
     name: ClassVar[str] = "grid"
     _table: np.ndarray | None = field(default=None, init=False, repr=False)
 
-    def _windows(self, path: PathPiece, a: float, b: float,
-                 scratch: _Scratch | None = None) -> Iterator[tuple]:  # fmt: skip
+    def _windows(
+        self, path: PathPiece, a: float, b: float, scratch: _Scratch | None = None
+    ) -> Iterator[tuple]:
         """Yield, per time scale, the resampled bank and its valid windows (the resampled
         bank in ``scratch``'s memory when given: valid until the next scale)."""
         bank, k = self.bank, self.opts.grid_points
@@ -173,8 +180,9 @@ class GridSearch:
             s_prim = np.repeat(ok, n_start)
             yield res, starts, s_prim, s_local * h, dur
 
-    def _resample(self, prim: np.ndarray, x: np.ndarray,
-                  scratch: _Scratch | None = None) -> np.ndarray:  # fmt: skip
+    def _resample(
+        self, prim: np.ndarray, x: np.ndarray, scratch: _Scratch | None = None
+    ) -> np.ndarray:
         """:func:`._interp.cubic_at` of primitives ``prim`` at sample indices ``x``, from a
         table of every interval's Catmull-Rom coefficients (:func:`_coefficient_table`,
         built on the first call, kept): no neighbour gathers and no coefficient arithmetic
