@@ -471,3 +471,33 @@ def test_a_host_other_than_loopback_needs_a_token_file(tmp_path):
     r = _serve_exit("--db", str(tmp_path / "x.duckdb"), "--token-file", str(bad))
     assert r.returncode == 2 and "a token of at least 16 characters, got 5" in r.stderr
     assert not (tmp_path / "x.duckdb").exists()
+
+
+def test_a_server_that_dies_mid_reply_is_a_remote_error_not_a_raw_http_exception():
+    # the durability test's kill can land while a reply is on the wire: the client read a
+    # Content-Length it never got (http.client.IncompleteRead, no OSError) and raised it
+    # raw, so a caller catching PrimlibError -- the durability test's ingest -- lost it
+    import socket
+    import threading
+
+    from primlib.client import RemoteError
+
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    sock.listen(1)
+
+    def cut_short() -> None:
+        conn, _ = sock.accept()
+        conn.recv(65536)
+        conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Type: application/json\r\n")
+        conn.sendall(b'Content-Length: 189\r\n\r\n{"id"')
+        conn.close()
+
+    t = threading.Thread(target=cut_short, daemon=True)
+    t.start()
+    try:
+        with pytest.raises(RemoteError, match="closed the connection mid-reply"):
+            Client(f"http://127.0.0.1:{sock.getsockname()[1]}").request("GET", "/health")
+    finally:
+        t.join(10)
+        sock.close()

@@ -7,6 +7,7 @@ lists of floats in shortest round-trip form (bit for bit).
 
 from __future__ import annotations
 
+import http.client
 import json
 import os
 import urllib.error
@@ -211,6 +212,12 @@ class Client:
         except (urllib.error.URLError, OSError) as exc:
             reason = getattr(exc, "reason", exc)
             raise RemoteError(f"{self.url}: cannot reach the server ({reason})") from None
+        except http.client.HTTPException as exc:
+            # a server killed while it answered: the reply cut short (IncompleteRead) is no
+            # OSError, and it came out raw -- a caller sees what any lost server gives
+            raise RemoteError(
+                f"{self.url}: the server closed the connection mid-reply ({exc!r})"
+            ) from None
 
     # ------------------------------------------------------------------ service
     def health(self) -> dict[str, Any]:
