@@ -206,7 +206,7 @@ def test_the_ripple_grid_scored_in_batches_is_the_one_frequency_formula():
         G[np.diag_indices_from(G)] += _fit._RIDGE * np.trace(G) / len(G)
         return r2 - float(b @ np.linalg.solve(G, b))
 
-    batched = _fit._sse_batch(A, G00, b0, r2, r, x, step, on, ws)
+    batched = _fit._sse_batch(A, G00, b0, r2, r, ripple_grid(x, step, ws, on))
     assert np.allclose(batched, [one(w) for w in ws], rtol=0, atol=1e-10 * r2)
     assert abs(ws[np.argmin(batched)] - 1.2566) < ws[1] - ws[0]  # and it finds the ripple
 
