@@ -158,6 +158,20 @@ def _search_pairs(row: dict, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return idx, np.concatenate([[0], np.cumsum(sizes[chosen])])
 
 
+def _band(pos, step, known, fitted) -> tuple[float, float, float] | None:
+    """(lowest, highest frequency, span) a ripple search covers: half a period over the
+    positions covered .. four samples a period at the fastest motion; None where fewer
+    than 16 ``fitted`` rows have a known position or the band is empty."""
+    if np.sum(fitted) < 16:
+        return None
+    span = float(np.ptp(pos[known]))
+    dx = float(np.percentile(np.abs(step[known]), 99))
+    if span <= 0 or dx <= 0:
+        return None
+    w_lo, w_hi = np.pi / span, np.pi / (2 * dx)
+    return None if w_hi <= w_lo else (w_lo, w_hi, span)
+
+
 def _input_search(row: dict, keep: np.ndarray | None = None) -> float:
     """Best spatial frequency of a ripple by in-sample fit on the *input* residual beside
     the linear and friction columns (0 when none can be seen): one normal matrix, each
@@ -168,15 +182,10 @@ def _input_search(row: dict, keep: np.ndarray | None = None) -> float:
     keep = np.ones(row["r"].size, bool) if keep is None else keep
     F, r, pos, step = (row[k][keep] for k in ("F", "r", "pos", "step"))
     known = np.isfinite(pos)
-    if known.sum() < 16:
+    band = _band(pos, step, known, known)
+    if band is None:
         return 0.0
-    span = float(np.ptp(pos[known]))
-    dx = float(np.percentile(np.abs(step[known]), 99))
-    if span <= 0 or dx <= 0:
-        return 0.0
-    w_lo, w_hi = np.pi / span, np.pi / (2 * dx)  # half a period over the span .. 4 samples
-    if w_hi <= w_lo:
-        return 0.0
+    w_lo, w_hi, span = band
     every = max(1, F.shape[0] // _SEARCH_ROWS)
     A, x, rr = F[::every, : _RIPPLE[0]], np.where(known, pos, 0.0)[::every], r[::every]
     dxs, on = step[::every], known[::every]
@@ -229,15 +238,10 @@ def _ripple_search(
     pos, step = row["pos"][idx], row["step"][idx]
     known = np.isfinite(pos)
     fit = keep[idx]  # the rows the least squares take (a pair's held-out rows are run, not fitted)
-    if np.sum(known & fit) < 16:
+    band = _band(pos, step, known, known & fit)
+    if band is None:
         return 0.0
-    span = float(np.ptp(pos[known]))
-    dx = float(np.percentile(np.abs(step[known]), 99))
-    if span <= 0 or dx <= 0:
-        return 0.0
-    w_lo, w_hi = np.pi / span, np.pi / (2 * dx)  # half a period over the span .. 4 samples
-    if w_hi <= w_lo:
-        return 0.0
+    w_lo, w_hi, span = band
     A, x, rr = Fo[np.ix_(idx[fit], cols)], np.where(known, pos, 0.0), ro[idx[fit]]
     scale = np.sqrt(np.mean(A**2, axis=0))
     live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
