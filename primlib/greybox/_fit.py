@@ -172,6 +172,15 @@ def _band(pos, step, known, fitted) -> tuple[float, float, float] | None:
     return None if w_hi <= w_lo else (w_lo, w_hi, span)
 
 
+def _normal(A: np.ndarray, rr: np.ndarray):
+    """A ripple search's base: the columns ``A`` standardised (those of no size dropped),
+    their normal matrix, their products with ``rr`` and ``rr``'s squared norm."""
+    scale = np.sqrt(np.mean(A**2, axis=0))
+    live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
+    A = A[:, live] / scale[live]
+    return A, A.T @ A, A.T @ rr, float(rr @ rr)
+
+
 def _input_search(row: dict, keep: np.ndarray | None = None) -> float:
     """Best spatial frequency of a ripple by in-sample fit on the *input* residual beside
     the linear and friction columns (0 when none can be seen): one normal matrix, each
@@ -189,10 +198,7 @@ def _input_search(row: dict, keep: np.ndarray | None = None) -> float:
     every = max(1, F.shape[0] // _SEARCH_ROWS)
     A, x, rr = F[::every, : _RIPPLE[0]], np.where(known, pos, 0.0)[::every], r[::every]
     dxs, on = step[::every], known[::every]
-    scale = np.sqrt(np.mean(A**2, axis=0))
-    live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
-    A = A[:, live] / scale[live]
-    G00, b0, r2 = A.T @ A, A.T @ rr, float(rr @ rr)
+    A, G00, b0, r2 = _normal(A, rr)
 
     def sse(ws: np.ndarray) -> np.ndarray:
         return _sse_batch(A, G00, b0, r2, rr, ripple_grid(x, dxs, ws, on))
@@ -243,10 +249,7 @@ def _ripple_search(
         return 0.0
     w_lo, w_hi, span = band
     A, x, rr = Fo[np.ix_(idx[fit], cols)], np.where(known, pos, 0.0), ro[idx[fit]]
-    scale = np.sqrt(np.mean(A**2, axis=0))
-    live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
-    A = A[:, live] / scale[live]
-    G00, b0, r2 = A.T @ A, A.T @ rr, float(rr @ rr)
+    A, G00, b0, r2 = _normal(A, rr)
 
     def sse(ws: np.ndarray) -> np.ndarray:
         S = ripple_grid(x, step, ws, known)  # (B, 2, r), rows of unknown position 0
