@@ -156,14 +156,14 @@ def _tree(index: ArcIndex, jb: int, dil: int, sub: int, n_windows: int):
         from scipy.spatial import cKDTree
 
         pts = index.levels[jb].pts
-        hit[1] = cKDTree(descriptors(pts, dil, sub), leafsize=32, balanced_tree=False,
-                         compact_nodes=False)  # fmt: skip
+        hit[1] = cKDTree(
+            descriptors(pts, dil, sub), leafsize=32, balanced_tree=False, compact_nodes=False
+        )
         hit[2] = float(np.abs(pts).max()) if pts.size else 0.0
     return hit[1], hit[2]
 
 
-def candidates(aq: ArcQuery, got: tuple, sub: int, rho: float,
-               n_most: int) -> np.ndarray | None:  # fmt: skip
+def candidates(aq: ArcQuery, got: tuple, sub: int, rho: float, n_most: int) -> np.ndarray | None:
     """Sorted starts of the windows (< ``aq.n_windows``) whose two sub-window descriptors
     lie in the balls of ``rho`` (a superset of the windows with a shape RMSD below it,
     module notes); ``got``: :func:`_tree`'s; None when the first ball holds more than
@@ -212,8 +212,9 @@ def search(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: CandidatePool)
     return True
 
 
-def _offer(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: CandidatePool,
-           ws: np.ndarray) -> None:  # fmt: skip
+def _offer(
+    search: IndexSearch, aq: ArcQuery, gates: Gates, pool: CandidatePool, ws: np.ndarray
+) -> None:
     """Bound the valid windows of ``ws`` and drain them best-first into ``pool``."""
     ws = ws[gates.valid(ws)]
     search.stats.windows += ws.size
