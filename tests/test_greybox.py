@@ -187,7 +187,7 @@ def test_the_ripple_frequency_is_where_the_output_error_is_least():
 def test_the_ripple_grid_scored_in_batches_is_the_one_frequency_formula():
     # the grid's SSE per frequency, batched (bordered normal matrices solved together), is
     # the same least squares as one frequency at a time: r'r - b'G^-1 b, to round-off
-    from primlib.greybox import _fit
+    from primlib.greybox import _lsq, _ripple
 
     rng = np.random.default_rng(0)
     n = 1500
@@ -203,10 +203,10 @@ def test_the_ripple_grid_scored_in_batches_is_the_one_frequency_formula():
         S = ripple_columns(x, step, w) * on[:, None]
         G = np.block([[G00, A.T @ S], [S.T @ A, S.T @ S]])
         b = np.concatenate([b0, S.T @ r])
-        G[np.diag_indices_from(G)] += _fit._RIDGE * np.trace(G) / len(G)
+        G[np.diag_indices_from(G)] += _lsq.RIDGE * np.trace(G) / len(G)
         return r2 - float(b @ np.linalg.solve(G, b))
 
-    batched = _fit._sse_batch(A, G00, b0, r2, r, ripple_grid(x, step, ws, on))
+    batched = _ripple.sse_batch(A, G00, b0, r2, r, ripple_grid(x, step, ws, on))
     assert np.allclose(batched, [one(w) for w in ws], rtol=0, atol=1e-10 * r2)
     assert abs(ws[np.argmin(batched)] - 1.2566) < ws[1] - ws[0]  # and it finds the ripple
 
