@@ -7,10 +7,12 @@ model's inverse, ``r = u - G^-1 y``, is linear in the coefficients, so per axis:
 1. the ripple's spatial frequency ``w`` is searched on a grid (spacing a quarter of a cycle
    over the positions the data covers, up to four samples per period at the fastest motion
    in the data), on the input residual and on the output error, the held-out error choosing
-   which (:func:`ripple_choice`), and refined by a bounded scalar search; friction and
-   bias, and then the ripple, are kept only if each lowers the cross-validated error by
-   more than 10 % (nothing is invented from noise or from a linear model's structured
-   error);
+   which (:func:`~._ripple.ripple_choice`), and refined by a bounded scalar search;
+   friction and bias, and then the ripple, are kept only if each lowers the
+   cross-validated error by more than 10 % (nothing is invented from noise or from a
+   linear model's structured error), and where friction did not pass alone, friction and
+   a ripple together are tried against the best of those (each hides what the other
+   explains);
 2. the coefficients are one ridge-regularised least-squares solve on standardised columns
    (a column the data does not excite -- an axis that barely moved, a constant speed -- gets
    no weight instead of a huge one; nothing is bounded, so nothing sits silently at a bound),
