@@ -106,13 +106,15 @@ def _axis_fit(row: dict, linear: bool = True):
     err_nl = cv_error(Fo, ro, cols + _FRICTION, folds)
     if rms(err_nl) < _GAIN * rms(best):
         cols, best = cols + _FRICTION, err_nl
-    w, err_r = ripple_choice(row, Fo, ro, cols)
+    alone = _FRICTION[0] not in cols  # friction did not pass alone
+    choices = ripple_choice(row, Fo, ro, [cols, cols + _FRICTION] if alone else [cols])
+    w, err_r = choices[0]
     gain = _GAIN
     if w > 0 and rms(err_r) < _GAIN * rms(best):
         best = err_r
     else:
         w, gain = 0.0, _GAIN**2  # friction and a ripple together: two groups to pay for
-    if _FRICTION[0] not in cols:
+    if alone:
         # friction judged beside the ripple too: where both act, neither may pass alone
         # (the other's error hides what it explains), so the nested models above keep
         # neither or only the ripple, at a frequency the friction's error pulls off. Issue
@@ -120,7 +122,7 @@ def _axis_fit(row: dict, linear: bool = True):
         # 0.250 with friction, 0.201 with the ripple, 0.046 with both; z's 0.125, 0.126,
         # 0.110 with a ripple at 0.095 rad/mm (the machine's is 1.257), 0.031 with both
         # (1.266). Each group must pay its _GAIN, as in the nested models.
-        w2, err2 = ripple_choice(row, Fo, ro, cols + _FRICTION)
+        w2, err2 = choices[1]
         if w2 > 0 and rms(err2) < gain * rms(best):
             cols, w, best = cols + _FRICTION, w2, err2
     if w > 0:

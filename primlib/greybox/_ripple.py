@@ -122,32 +122,38 @@ def _input_search(row: dict, keep: np.ndarray | None = None) -> float:
     A, G00, b0, r2 = _normal(A, rr)
 
     def sse(ws: np.ndarray) -> np.ndarray:
-        return sse_batch(A, G00, b0, r2, rr, ripple_grid(x, dxs, ws, on))
+        return sse_batch(A, G00, b0, r2, rr, ripple_grid(x, dxs, ws, on))[None]
 
-    return _grid_minimum(sse, w_lo, w_hi, span)
+    return _grid_minima(sse, w_lo, w_hi, span)[0]
 
 
-def _grid_minimum(sse, w_lo: float, w_hi: float, span: float) -> float:
-    """The frequency of least ``sse`` on the grid over [w_lo, w_hi], refined between its
-    neighbours."""
+def _grid_minima(sse, w_lo: float, w_hi: float, span: float) -> list[float]:
+    """Per objective, the frequency of least ``sse`` on the grid over [w_lo, w_hi], refined
+    between its neighbours (``sse(ws)``: shape (objectives, len(ws)), objectives that share
+    the grid's costly part)."""
     count = min(int((w_hi - w_lo) / grid_step(span)) + 1, _GRID_MAX)
     grid = np.linspace(w_lo, w_hi, max(count, 2))
-    vals = np.concatenate([sse(grid[k : k + _BATCH]) for k in range(0, grid.size, _BATCH)])
-    k = int(np.argmin(vals))
-    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
-    if hi <= lo:
-        return float(grid[k])
-    res = optimize.minimize_scalar(
-        lambda w: float(sse(np.array([w]))[0]), bounds=(lo, hi), method="bounded"
-    )
-    return float(res.x) if res.fun <= vals[k] else float(grid[k])
+    vals = np.concatenate([sse(grid[k : k + _BATCH]) for k in range(0, grid.size, _BATCH)], axis=1)
+    out = []
+    for v, row_vals in enumerate(vals):
+        k = int(np.argmin(row_vals))
+        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+        if hi <= lo:
+            out.append(float(grid[k]))
+            continue
+        res = optimize.minimize_scalar(
+            lambda w, v=v: float(sse(np.array([w]))[v, 0]), bounds=(lo, hi), method="bounded"
+        )
+        out.append(float(res.x) if res.fun <= row_vals[k] else float(grid[k]))
+    return out
 
 
 def _ripple_search(
-    row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int], keep: np.ndarray | None = None
-) -> float:
+    row: dict, Fo: np.ndarray, ro: np.ndarray, colsets: list[list[int]], keep=None
+) -> list[float]:
     """Best spatial frequency of a ripple on the fit's own objective, the output error
-    beside ``cols``, on the rows ``keep`` (0 when none can be seen).
+    beside each of ``colsets``, on the rows ``keep`` (0 when none can be seen); the
+    candidates' columns run through the model once for all of them.
 
     Each candidate's sin and cos columns are run through the axis's model like the other
     regressors (whole pairs, at most ``_SEARCH_ROWS`` rows): the search scored them on the
@@ -167,17 +173,18 @@ def _ripple_search(
     fit = keep[idx]  # the rows the least squares take (a pair's held-out rows are run, not fitted)
     band = _band(pos, step, known, known & fit)
     if band is None:
-        return 0.0
+        return [0.0] * len(colsets)
     w_lo, w_hi, span = band
-    A, x, rr = Fo[np.ix_(idx[fit], cols)], np.where(known, pos, 0.0), ro[idx[fit]]
-    A, G00, b0, r2 = _normal(A, rr)
+    x, rr = np.where(known, pos, 0.0), ro[idx[fit]]
+    bases = [_normal(Fo[np.ix_(idx[fit], cols)], rr) for cols in colsets]
 
     def sse(ws: np.ndarray) -> np.ndarray:
         S = ripple_grid(x, step, ws, known)  # (B, 2, r), rows of unknown position 0
         So = through_model(S.reshape(-1, S.shape[2]).T, st, *row["tf"]).T
-        return sse_batch(A, G00, b0, r2, rr, So.reshape(S.shape)[:, :, fit])
+        So = So.reshape(S.shape)[:, :, fit]
+        return np.stack([sse_batch(A, G00, b0, r2, rr, So) for A, G00, b0, r2 in bases])
 
-    return _grid_minimum(sse, w_lo, w_hi, span)
+    return _grid_minima(sse, w_lo, w_hi, span)
 
 
 def ripple_polish(
@@ -211,39 +218,46 @@ def output_columns(row: dict, Fo: np.ndarray, w: float) -> np.ndarray:
     return np.concatenate([Fo[:, : RIPPLE[0]], G], axis=1)
 
 
-def ripple_choice(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int]):
-    """(frequency, cross-validated error) of the ripple search, on the input residual
-    (:func:`_input_search`) or on the output error (:func:`_ripple_search`), whichever
-    predicts the held-out primitives better; (0, None) where neither sees one. Neither
-    wins everywhere on issue 9's libraries: on output error the ripple setting's z where
-    the input side found 3.51 rad/mm for 1.257; on the input side the all-together y, whose
-    output error friction the fit did not keep dominates (4.98 mm found, none on output)."""
-    best_w, best_err = 0.0, None
+def ripple_choice(row: dict, Fo: np.ndarray, ro: np.ndarray, colsets: list[list[int]]):
+    """Per column set of ``colsets``, (frequency, cross-validated error) of the ripple
+    search beside it, on the input residual (:func:`_input_search`) or on the output error
+    (:func:`_ripple_search`), whichever predicts the held-out primitives better; (0, None)
+    where neither sees one. Neither wins everywhere on issue 9's libraries: on output error
+    the ripple setting's z where the input side found 3.51 rad/mm for 1.257; on the input
+    side the all-together y, whose output error friction the fit did not keep dominates
+    (4.98 mm found, none on output). The column sets share each search's costly part (the
+    input side does not depend on them; the output side runs its candidates through the
+    model once)."""
+    m = len(colsets)
+    best: list[tuple[float, np.ndarray | None]] = [(0.0, None)] * m
     for search in (
-        lambda keep=None: _input_search(row, keep),
-        lambda keep=None: _ripple_search(row, Fo, ro, cols, keep),
+        lambda keep=None: [_input_search(row, keep)] * m,
+        lambda keep=None: _ripple_search(row, Fo, ro, colsets, keep),
     ):
-        w = search()
-        if w <= 0:
+        ws = search()
+        if max(ws) <= 0:
             continue
-        err = cv_ripple(row, Fo, ro, cols, search)
-        if best_err is None or rms(err) < rms(best_err):
-            best_w, best_err = w, err
-    return best_w, best_err
+        errs = cv_ripple(row, Fo, ro, colsets, search)
+        for v, (w, err) in enumerate(zip(ws, errs, strict=True)):
+            if w > 0 and (best[v][1] is None or rms(err) < rms(best[v][1])):
+                best[v] = (w, err)
+    return best
 
 
-def cv_ripple(row: dict, Fo: np.ndarray, ro: np.ndarray, cols: list[int], search) -> np.ndarray:
-    """Cross-validated error with a ripple whose frequency each fold searches (``search``,
-    of the rows it may use) on its own training rows: a frequency chosen on all the data
-    would fit structure in the held-out rows too (with few primitives, residual structure
-    in time looks like a short pitch)."""
+def cv_ripple(
+    row: dict, Fo: np.ndarray, ro: np.ndarray, colsets: list[list[int]], search
+) -> list[np.ndarray]:
+    """Per column set, the cross-validated error with a ripple whose frequency each fold
+    searches (``search``, of the rows it may use: one frequency per column set) on its own
+    training rows: a frequency chosen on all the data would fit structure in the held-out
+    rows too (with few primitives, residual structure in time looks like a short pitch)."""
     folds = row["folds"]
-    err = np.empty_like(ro)
+    errs = [np.empty_like(ro) for _ in colsets]
     for k in np.unique(folds):
         test = folds == k
         train = ~test
-        w = search(train)
-        G, use = (Fo, cols) if w <= 0 else (output_columns(row, Fo, w), cols + RIPPLE)
-        c = solve(G[train], ro[train], use)
-        err[test] = ro[test] - G[test] @ c
-    return err
+        for cols, w, err in zip(colsets, search(train), errs, strict=True):
+            G, use = (Fo, cols) if w <= 0 else (output_columns(row, Fo, w), cols + RIPPLE)
+            c = solve(G[train], ro[train], use)
+            err[test] = ro[test] - G[test] @ c
+    return errs
