@@ -68,3 +68,15 @@ def test_under_a_disturbance_the_first_trial_bound_is_an_input_better_than_every
         # below the nominal inverse's (a model 8 % off, a 12 ms lag it does not know)
         assert set(row["draws"]) == set(bench_realism.STARTS)
         assert bound["own"] < bound["draws"] < row["draws"]["nominal"]
+        # its own series counts its trials to 2x the starts' floor like theirs
+        assert bound["trials"] >= 1 and (
+            bound["trials"] == int(bound["trials"]) or bound["trials"] == float("inf")
+        )
+
+
+def test_a_trials_check_the_bound_cannot_meet_says_so():
+    rows = [{"bound": {"trials": t}} for t in (2.0, 2.0, 1.0)]
+    assert "unreachable" in bench_realism._unreachable_trials(rows, 1.0)
+    assert "needs 2" in bench_realism._unreachable_trials(rows, 1.0)
+    assert bench_realism._unreachable_trials(rows, 2.0) == ""
+    assert bench_realism._unreachable_trials([{"bound": None}], 1.0) == ""
