@@ -411,7 +411,10 @@ def summarise(result: dict) -> list[str]:
                 f"{statistics.median([r['bound']['trials'] for r in rows]):g}"
             )
         if med["warm"] > med["model-only"] or max(ratio) > 1.1:
-            fails.append(f"{name}, {kind}: warm worse than model-only")
+            fails.append(
+                f"{name}, {kind}: warm worse than model-only (median {med['warm']:.4g} against "
+                f"{med['model-only']:.4g} mm, worst path {max(ratio):.3f}x)"
+            )
         if name in HARD and kind != "rotated/scaled":
             goal = min(0.3 * med["refined"], 3 * floor)
             if med["warm"] > goal:
