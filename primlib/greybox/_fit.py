@@ -253,7 +253,7 @@ def one_way(v: np.ndarray, speed: float) -> tuple[str, float] | None:
 
 
 def _without_bias(row: dict) -> dict:
-    """``row`` with its bias column zero (:func:`solve` and the robust fit give a zero
+    """``row`` with its bias column zero (:func:`~._lsq.solve` and the robust fit give a zero
     column no weight).
 
     Where an axis moved one way in nearly all of its moving rows, its Coulomb column sgn(v)

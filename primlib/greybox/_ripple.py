@@ -44,7 +44,7 @@ def grid_step(span: float) -> float:
 
 
 def sse_batch(A, G00, b0, r2, rr, S: np.ndarray) -> np.ndarray:
-    """:func:`_ripple_search`'s in-sample SSE at each frequency of a batch at once: the
+    """A ripple search's in-sample SSE at each frequency of a batch at once: the
     ripple columns ``S`` (B, 2, r) of a batch of frequencies, their products with the base
     columns and the bordered normal matrices, solved batched (the grid has up to
     ``_GRID_MAX`` points)."""
@@ -108,7 +108,7 @@ def _input_search(row: dict, keep: np.ndarray | None = None) -> float:
     candidate adding its two columns' products (on at most ``_SEARCH_ROWS`` evenly spread
     rows). Where friction the fit did not keep dominates the output error (issue 9's
     all-together y) it found the ripple (4.98 mm for 5) where :func:`_ripple_search` did
-    not; which of the two is used is for cross-validation to say (:func:`_axis_fit`)."""
+    not; which of the two is used is for cross-validation to say (:func:`ripple_choice`)."""
     keep = np.ones(row["r"].size, bool) if keep is None else keep
     F, r, pos, step = (row[k][keep] for k in ("F", "r", "pos", "step"))
     known = np.isfinite(pos)
@@ -192,9 +192,9 @@ def ripple_polish(
 ) -> float:
     """The ripple's frequency refined on the fit's own objective, the output error.
 
-    :func:`_ripple_search` scores frequencies on the input residual beside the linear
-    columns only (cheap, one normal matrix); its minimum sits a little off the output
-    error's, and a relative error of 5e-5 in ``w`` is 0.01 rad of phase 200 mm along the
+    :func:`_input_search` scores frequencies on the input residual (cheap, one normal
+    matrix), :func:`_ripple_search` on the output error of a subset of the rows; their
+    minimum sits a little off the full output error's, and a relative error of 5e-5 in ``w`` is 0.01 rad of phase 200 mm along the
     table: with the coefficients refitted to it, 0.3-0.5 % of the ripple left in the
     model-only input (issue 9's ripple setting). Searched within one grid ``step`` of ``w``.
     """
