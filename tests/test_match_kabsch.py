@@ -61,9 +61,20 @@ def test_never_a_reflection(seed, d, n):
     p, q = _curve(n, d, seed), _curve(n, d, seed + 1)
     res = kabsch(p, q)
     np.testing.assert_allclose(np.linalg.det(res.rotation), 1.0, atol=1e-12)
-    # a mirror image of a non-symmetric curve is not reached by any proper rotation
+    # a mirror image is reached by no proper rotation: with S = Pc'Pc (Pc the centred
+    # points, eigenvalues l_1 >= ... >= l_d) the cross-covariance is S M (M the mirror,
+    # det -1), whose singular values are the l_i; the best proper rotation must flip the
+    # sign of the smallest, so n rmsd^2 = 2 tr S - 2 (tr S - 2 l_d) = 4 l_d: the mirror is
+    # 2 sqrt(l_d / n) away, zero only for points in a hyperplane (asserting a fixed 1e-3
+    # failed on four nearly coplanar points of 3-D, 5.2e-4 away)
     mirror = p * np.r_[-1.0, np.ones(d - 1)]
-    assert kabsch(p, mirror).rmsd > 1e-3
+    pc = p - p.mean(axis=0)
+    low = max(float(np.linalg.eigvalsh(pc.T @ pc)[0]), 0.0)
+    radius = float(np.sqrt(np.sum(pc**2) / n))
+    got = kabsch(p, mirror).rmsd
+    # (to 1e-6 of the radius: near 0 an rmsd taken from a difference of squares errs by up
+    # to ~sqrt(machine eps) of it; 6e-13 at most over 16,000 curves)
+    assert abs(got - 2.0 * np.sqrt(low / n)) <= 1e-6 * radius
 
 
 @settings(max_examples=40, deadline=None)
