@@ -7,20 +7,25 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-__all__ = ["RIDGE", "cv_error", "rms", "solve", "through_model"]
+__all__ = ["RIDGE", "cv_error", "rms", "solve", "standardised", "through_model"]
 
 RIDGE = 1e-8  # relative to the mean diagonal of the standardised normal matrix
+
+
+def standardised(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(the columns of ``A`` of any size, each divided by its RMS; which those are; every
+    column's RMS): a column the data does not excite gets no weight instead of a huge one."""
+    scale = np.sqrt(np.mean(A**2, axis=0))
+    live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
+    return A[:, live] / scale[live], live, scale
 
 
 def solve(F: np.ndarray, r: np.ndarray, cols: list[int]) -> np.ndarray:
     """Ridge least squares on the standardised columns ``cols`` (others get 0)."""
     coef = np.zeros(F.shape[1])
-    A = F[:, cols]
-    scale = np.sqrt(np.mean(A**2, axis=0))
-    live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
+    A, live, scale = standardised(F[:, cols])
     if not np.any(live):
         return coef
-    A = A[:, live] / scale[live]
     G = A.T @ A
     G[np.diag_indices_from(G)] += RIDGE * max(float(np.trace(G)) / len(G), 1e-300)
     sol = np.linalg.solve(G, A.T @ r)

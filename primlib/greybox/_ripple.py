@@ -11,18 +11,9 @@ import numpy as np
 from scipy import optimize
 
 from primlib.greybox._features import POSITION, TERMS, ripple_columns, ripple_grid
-from primlib.greybox._lsq import RIDGE, rms, solve, through_model
+from primlib.greybox._lsq import RIDGE, rms, solve, standardised, through_model
 
-__all__ = [
-    "RIPPLE",
-    "cv_ripple",
-    "grid_step",
-    "ripple_choice",
-    "output_columns",
-    "ripple_polish",
-    "sse_batch",
-    "with_ripple",
-]
+__all__ = ["RIPPLE", "grid_step", "output_columns", "ripple_choice", "ripple_polish", "sse_batch"]
 
 RIPPLE = [TERMS.index(t) for t in POSITION]  # the last columns: the others come before
 _SEARCH_ROWS = 40_000  # rows the ripple-frequency grid is evaluated on
@@ -30,12 +21,12 @@ _GRID_MAX = 4000  # ripple frequencies tried at most
 _BATCH = 64  # ripple frequencies scored per batch
 
 
-def with_ripple(F: np.ndarray, pos: np.ndarray, step: np.ndarray, w: float) -> np.ndarray:
-    G = F.copy()
+def _ripple_part(pos: np.ndarray, step: np.ndarray, w: float) -> np.ndarray:
+    """The ripple's two columns at ``w`` (:func:`~._features.ripple_columns`), 0 on rows of
+    unknown position, shape (n, 2)."""
     known = np.isfinite(pos)
     cols = ripple_columns(np.where(known, pos, 0.0), step, w)
-    G[:, RIPPLE] = np.where(known[:, None], cols, 0.0)
-    return G
+    return np.where(known[:, None], cols, 0.0)
 
 
 def grid_step(span: float) -> float:
@@ -94,11 +85,10 @@ def _band(pos, step, known, fitted) -> tuple[float, float, float] | None:
 
 
 def _normal(A: np.ndarray, rr: np.ndarray):
-    """A ripple search's base: the columns ``A`` standardised (those of no size dropped),
-    their normal matrix, their products with ``rr`` and ``rr``'s squared norm."""
-    scale = np.sqrt(np.mean(A**2, axis=0))
-    live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
-    A = A[:, live] / scale[live]
+    """A ripple search's base: the columns ``A`` standardised (those of no size dropped,
+    :func:`~._lsq.standardised`), their normal matrix, their products with ``rr`` and
+    ``rr``'s squared norm."""
+    A = standardised(A)[0]
     return A, A.T @ A, A.T @ rr, float(rr @ rr)
 
 
@@ -194,9 +184,10 @@ def ripple_polish(
 
     :func:`_input_search` scores frequencies on the input residual (cheap, one normal
     matrix), :func:`_ripple_search` on the output error of a subset of the rows; their
-    minimum sits a little off the full output error's, and a relative error of 5e-5 in ``w`` is 0.01 rad of phase 200 mm along the
-    table: with the coefficients refitted to it, 0.3-0.5 % of the ripple left in the
-    model-only input (issue 9's ripple setting). Searched within one grid ``step`` of ``w``.
+    minimum sits a little off the full output error's, and a relative error of 5e-5 in
+    ``w`` is 0.01 rad of phase 200 mm along the table: with the coefficients refitted to
+    it, 0.3-0.5 % of the ripple left in the model-only input (issue 9's ripple setting).
+    Searched within one grid ``step`` of ``w``.
     """
 
     def sse(x: float) -> float:
@@ -211,10 +202,7 @@ def ripple_polish(
 
 def output_columns(row: dict, Fo: np.ndarray, w: float) -> np.ndarray:
     """``Fo`` with the ripple columns at ``w``, run through the model like the others."""
-    b, a = row["tf"]
-    G = through_model(
-        with_ripple(row["F"], row["pos"], row["step"], w)[:, RIPPLE], row["starts"], b, a
-    )
+    G = through_model(_ripple_part(row["pos"], row["step"], w), row["starts"], *row["tf"])
     return np.concatenate([Fo[:, : RIPPLE[0]], G], axis=1)
 
 
@@ -237,27 +225,32 @@ def ripple_choice(row: dict, Fo: np.ndarray, ro: np.ndarray, colsets: list[list[
         ws = search()
         if max(ws) <= 0:
             continue
-        errs = cv_ripple(row, Fo, ro, colsets, search)
+        errs = _cv_ripple(row, Fo, ro, colsets, search)
         for v, (w, err) in enumerate(zip(ws, errs, strict=True)):
             if w > 0 and (best[v][1] is None or rms(err) < rms(best[v][1])):
                 best[v] = (w, err)
     return best
 
 
-def cv_ripple(
+def _cv_ripple(
     row: dict, Fo: np.ndarray, ro: np.ndarray, colsets: list[list[int]], search
 ) -> list[np.ndarray]:
     """Per column set, the cross-validated error with a ripple whose frequency each fold
     searches (``search``, of the rows it may use: one frequency per column set) on its own
     training rows: a frequency chosen on all the data would fit structure in the held-out
-    rows too (with few primitives, residual structure in time looks like a short pitch)."""
+    rows too (with few primitives, residual structure in time looks like a short pitch).
+    Each frequency's columns are formed once a fold (the input side gives every column set
+    the same one)."""
     folds = row["folds"]
     errs = [np.empty_like(ro) for _ in colsets]
     for k in np.unique(folds):
         test = folds == k
         train = ~test
+        columns: dict[float, np.ndarray] = {}
         for cols, w, err in zip(colsets, search(train), errs, strict=True):
-            G, use = (Fo, cols) if w <= 0 else (output_columns(row, Fo, w), cols + RIPPLE)
+            if w > 0 and w not in columns:
+                columns[w] = output_columns(row, Fo, w)
+            G, use = (Fo, cols) if w <= 0 else (columns[w], cols + RIPPLE)
             c = solve(G[train], ro[train], use)
             err[test] = ro[test] - G[test] @ c
     return errs
