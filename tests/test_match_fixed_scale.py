@@ -86,3 +86,22 @@ def test_the_grid_resamples_and_takes_moments_as_cubic_at_and_the_gathered_sums_
     sp = sxx - sx * sx / k
     np.testing.assert_array_equal(_window_moments(cs, cs2, starts, k, True), sp)
     np.testing.assert_array_equal(_window_moments(cs, cs2, starts, k, False), sp.sum(axis=1))
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("n", [1, 17, 5000])
+def test_the_grid_running_sums_and_means_are_numpys_to_the_last_bit(d, n):
+    # the paired (complex) running sums, and the column means from running sums: numpy's
+    # own cumsum and mean, bit for bit (the grid's seeds and RMSDs come from them)
+    from primlib.match._grid import _column_means, _cumsums, _Scratch
+
+    rng = np.random.default_rng(n + d)
+    x = rng.normal(size=(n, d)) * 40.0 + rng.normal(size=d) * 300.0
+    for scratch in (None, _Scratch()):
+        cs, cs2 = _cumsums(x, scratch)
+        np.testing.assert_array_equal(cs, np.vstack([np.zeros(d), np.cumsum(x, axis=0)]))
+        np.testing.assert_array_equal(cs2, np.vstack([np.zeros(d), np.cumsum(x * x, axis=0)]))
+        np.testing.assert_array_equal(_column_means(x, scratch), x.mean(axis=0))
+    # a strided array (its rows not contiguous) takes numpy's mean itself
+    wide = rng.normal(size=(n, 2 * d))[:, ::2]
+    np.testing.assert_array_equal(_column_means(wide), wide.mean(axis=0))

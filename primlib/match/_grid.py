@@ -102,13 +102,36 @@ def _array(scratch: _Scratch | None, name: str, shape: tuple[int, ...]) -> np.nd
 
 
 def _cumsums(x: np.ndarray, scratch: _Scratch | None = None):
-    """Cumulative sums of x and x², a zero row first, shape (n + 1, d) each."""
+    """Cumulative sums of x and x², a zero row first, shape (n + 1, d) each: views of one
+    array holding each x and x² as the real and imaginary parts of a complex number, so one
+    running sum adds both (complex addition adds the parts alone: the same additions in the
+    same order as two sums; 52 against 91 ms on 3.5 M points in 3-D)."""
     n, d = x.shape
-    cs, cs2 = _array(scratch, "cs", (n + 1, d)), _array(scratch, "cs2", (n + 1, d))
-    cs[0] = cs2[0] = 0.0
-    np.cumsum(x, axis=0, out=cs[1:])
-    np.cumsum(np.multiply(x, x, out=_array(scratch, "tmp", (n, d))), axis=0, out=cs2[1:])
-    return cs, cs2
+    both = _array(scratch, "cs", (n + 1, d, 2))
+    both[0] = 0.0
+    both[1:, :, 0] = x
+    np.multiply(x, x, out=both[1:, :, 1])
+    pairs = both.view(np.complex128)[:, :, 0]
+    np.cumsum(pairs[1:], axis=0, out=pairs[1:])
+    return both[:, :, 0], both[:, :, 1]
+
+
+def _column_means(x: np.ndarray, scratch: _Scratch | None = None) -> np.ndarray:
+    """``x.mean(axis=0)`` of an (n, d) array with contiguous rows, the same numbers: numpy
+    sums down the first axis a row at a time, each column's running sum, which 1-D
+    cumulative sums give, two columns at once as the parts of complex numbers (3.5 M
+    points in 3-D: 23 against 50 ms)."""
+    n, d = x.shape
+    if x.strides[1] != x.itemsize:
+        return x.mean(axis=0)
+    run = _array(scratch, "tmp", (2 * n,)).view(np.complex128)  # free while res is centred
+    total = np.empty(d)
+    for j in range(0, d - 1, 2):
+        both = np.cumsum(x[:, j : j + 2].view(np.complex128)[:, 0], out=run)[-1]
+        total[j], total[j + 1] = both.real, both.imag
+    if d % 2:
+        total[-1] = np.cumsum(x[:, -1], out=run.view(float)[:n])[-1]
+    return total / n
 
 
 def _window_moments(
@@ -130,7 +153,7 @@ def _window_moments(
     1,000 primitives, the query's peak is the same)."""
     n, d = cs.shape[0] - k, cs.shape[1]
     sx = np.subtract(cs[k:], cs[:-k], out=_array(scratch, "tmp", (n, d)))
-    sp = np.subtract(cs2[k:], cs2[:-k], out=_array(scratch, "cs", (n, d)))
+    sp = np.subtract(cs2[k:], cs2[:-k], out=None if scratch is None else cs[:n])
     sx *= sx
     sx /= k
     sp -= sx  # sxx − sx·sx / k, in place
@@ -268,7 +291,7 @@ class GridSearch:
         radius-of-gyration bound |g(P) − g(Q)| ≤ rmsd proves to be at or above it. ``res``
         is centred in place."""
         # centre per window via cumulative sums; the cross term needs no centring (Σ q̃ = 0)
-        res -= res.mean(axis=0)
+        res -= _column_means(res, scratch)
         res_c = res
         cs, cs2 = _cumsums(res_c, scratch)
         per_axis = rotation == "z"
