@@ -60,6 +60,29 @@ def _stable(a: np.ndarray, b_r: np.ndarray, w_shift: np.ndarray) -> np.ndarray:
     return signal.lfilter(lead, b_u[::-1], x[::-1])[::-1]
 
 
+def _start_correction(h: np.ndarray, e: np.ndarray, k: int, reg: float) -> np.ndarray:
+    """Input over the first ``k`` samples, least squares (relative weight ``reg``) of the
+    output error ``e`` through the impulse response ``h`` (module notes)."""
+    n = len(e)
+    k = min(k, n)
+    lags = np.arange(n)[:, None] - np.arange(k)[None, :]
+    cols = np.where(lags >= 0, h[np.clip(lags, 0, None)], 0.0)
+    gram = cols.T @ cols
+    gram[np.diag_indices(k)] += reg * np.trace(gram) / k + 1e-300
+    return linalg.solve(gram, cols.T @ e, assume_a="pos")
+
+
+def _correction_length(b: np.ndarray, r: int) -> int:
+    """Samples the start correction spans: until the slowest unstable zero's pre-actuation
+    has decayed to 1e-8 (at least 8, at most 256)."""
+    b_r = np.trim_zeros(b[r:], "b")
+    zeros = np.abs(np.roots(b_r)) if len(b_r) > 1 else np.zeros(0)
+    outside = zeros[zeros > 1.0 + _UNIT_TOL]
+    if outside.size == 0:
+        return 0
+    return int(np.clip(np.ceil(np.log(1e8) / np.log(np.min(outside))), 8, 256))
+
+
 def _shifted_inverse(b, a, w, r, method):
     n = len(w)
     v = np.zeros(n)
@@ -137,9 +160,18 @@ def invert(machine, y_desired, reference=None, reg: float = 1e-8, method: str = 
         return u
     rel = machine.relative_degree
     u = np.empty_like(w)
+    stable = []
     for i, ((b, a), cg) in enumerate(zip(machine.discrete(), machine.controllers(), strict=True)):
-        v, _ = _shifted_inverse(b, a, w[:, i], int(rel[i]), method)
+        v, used = _shifted_inverse(b, a, w[:, i], int(rel[i]), method)
         if cg is not None:
             v = v + signal.lfilter(cg[0], cg[1], w[:, i])
         u[:, i] = v
+        if used == "stable" and (k := _correction_length(b, int(rel[i]))):
+            stable.append((i, k))
+    if stable:
+        # what the truncated pre-actuation leaves, taken out over the first samples
+        e = w - machine.simulate(u)
+        h = machine.impulse_response(n)
+        for i, k in stable:
+            u[:k, i] += _start_correction(h[:, i], e[:, i], k, reg)
     return u
