@@ -50,9 +50,11 @@ def as_trajectory(path: Trajectory | str | PathLike) -> Trajectory:
 
 
 def _refined_note(machine: Machine, model: RefinedModel) -> str:
+    modes = np.zeros((machine.dim, 2)) if model.mode is None else model.mode
     th = ", ".join(
         f"{a}: gain {g:.4g}, time scale {c:.4g}, lag {tau * 1e3:.3g} ms"
-        for a, (g, c, tau) in zip(machine.axes, model.theta, strict=True)
+        + (f", mode {f:.4g} Hz (damping {z:.3g})" if f > 0 else "")
+        for a, (g, c, tau), (f, z) in zip(machine.axes, model.theta, modes, strict=True)
     )
     return f"model refined on the library's stored pairs: {th}"
 
@@ -125,7 +127,13 @@ class WarmStarter:
 
     # ------------------------------------------------------------------ refine
     def refined_model(
-        self, machine: Machine, bank: Bank, ids: Sequence[int], gb: GreyBox | None = None
+        self,
+        machine: Machine,
+        bank: Bank,
+        ids: Sequence[int],
+        gb: GreyBox | None = None,
+        *,
+        modes: bool = True,
     ) -> RefinedModel:
         """The model refined on the matched primitives, plus others of the bank up to 24.
 
@@ -133,13 +141,14 @@ class WarmStarter:
         move it on the new path) is refined too. With a grey-box model ``gb`` the fit sees
         the stored inputs' linear parts (friction, ripple and bias taken out, and the rows
         their paths do not determine replaced: :meth:`~primlib.greybox.GreyBox.clean`), so
-        those do not drive the linear model's gain, time constant and lag. Cached on this
-        object.
+        those do not drive the linear model's gain, time constant and lag. ``modes``: a
+        structural mode is searched beside them (:func:`~primlib.splice.refine_machine`).
+        Cached on this object.
         """
         all_ids = [int(i) for i in np.asarray(bank.ids)]
         chosen = [i for i in ids if i in all_ids]
         chosen += [i for i in all_ids if i not in chosen][: max(0, _REFINE_MAX - len(chosen))]
-        key = (repr(machine.to_dict()), tuple(sorted(chosen)), gb is not None)
+        key = (repr(machine.to_dict()), tuple(sorted(chosen)), gb is not None, modes)
         hit = self.refined.get(key)
         if hit is not None:
             self.refined.move_to_end(key)
@@ -149,7 +158,7 @@ class WarmStarter:
         else:
             stored = linear_parts(gb, bank, chosen, versions=False, clean=True)
         model = refine_machine(
-            machine, [(s.signal, s.points - s.points[0]) for s in stored.values()]
+            machine, [(s.signal, s.points - s.points[0]) for s in stored.values()], modes=modes
         )
         self.refined[key] = model
         while len(self.refined) > self.refine_cache:
@@ -220,6 +229,7 @@ class WarmStarter:
         match: Match | None = None,
         origin: Any = None,
         greybox: bool = True,
+        modes: bool = True,
         **kw: Any,
     ) -> WarmStart:
         """First-iteration ILC input for a new path from the machine's primitives.
@@ -251,6 +261,10 @@ class WarmStarter:
             carried by superposition, friction, ripple and bias re-evaluated on the new
             motion, per segment that or the model-only input (``WarmStart.model_u``),
             whichever predicts less error. False: spliced whole (the paper's method).
+        modes : bool
+            With ``refine``, also search each axis for a structural mode in series (a
+            compliant coupling, :func:`primlib.splice.refine_machine`); False: the gain,
+            time-constant scale and lag only.
         **kw
             Passed to :meth:`match`.
 
@@ -270,7 +284,7 @@ class WarmStarter:
             match = self.match(traj, machine, eps, **kw)
         ids = sorted({s.primitive for s in match.segments if s.primitive is not None})
         bank = self.store.bank(machine)
-        model, gb, stored = self._models(m, bank, ids, refine, greybox)
+        model, gb, stored = self._models(m, bank, ids, refine, greybox, modes)
         pts = traj.sample(m.dt)
         res = splice(
             m if model is None else model.machine,
@@ -287,7 +301,7 @@ class WarmStarter:
             return _warm_start_result(res, m, match, model)
         return _grey_result(res, m, match, model, gb, bank, pts, origin)
 
-    def _models(self, m: Machine, bank: Bank, ids, refine: bool, greybox: bool):
+    def _models(self, m: Machine, bank: Bank, ids, refine: bool, greybox: bool, modes=True):
         """(refined model or None, grey-box model or None, the stored signals to splice).
 
         The grey-box terms are fitted beside the nominal model, the linear model is refined
@@ -298,7 +312,7 @@ class WarmStarter:
         if greybox:
             gb = self.greybox(m, bank)
         if refine and (ids or gb is not None) and not m.feedback:
-            model = self.refined_model(m, bank, ids, gb)
+            model = self.refined_model(m, bank, ids, gb, modes=modes)
             if gb is not None:
                 gb = self.greybox(model.machine, bank, linear=False)
         if not ids:
