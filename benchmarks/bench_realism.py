@@ -33,7 +33,8 @@ estimate of the true error it leaves). New paths, of three kinds:
 Each path is run from five first inputs: **warm** (the library's warm start), **model-only**
 (``WarmStart.model_u``: the grey-box model primlib fits to the same library data, inverted
 over the whole path, no stored signal), **refined** (the inverse of the linear model the
-library's pairs refine, the strongest model before the grey-box), **nominal** (the nominal
+library's pairs refine in issue 9's family -- gain, time-constant scale and lag, no structural
+mode: the strongest model before the grey-box), **nominal** (the nominal
 model's inverse) and **cold** (zero). Reported per setting and kind: the median and the
 worst path of the first trial's RMS error of the true (noise-free) motion, mm; and of the
 trials until the true error is within 2x of the path's floor -- the best ILC reaches on that
@@ -241,7 +242,9 @@ def first_inputs(lib: Library, nominal: Machine, pts: np.ndarray) -> dict[str, n
     ref = ref - ref[0]
     origin = pts[0]
     ws = lib.warm_start(traj, "xyz", EPS, origin=origin)
-    plain = lib.warm_start(traj, "xyz", EPS, match=ws.match, greybox=False)
+    # issue 9's baseline, "the refined linear model's inverse of today": gain, time-constant
+    # scale and lag, no structural mode (primlib.splice.refine_machine, modes=False)
+    plain = lib.warm_start(traj, "xyz", EPS, match=ws.match, greybox=False, modes=False)
     refined = nominal if plain.model is None else plain.model.machine
     return (
         {
