@@ -94,8 +94,7 @@ def continuous_output(
             out[pos, i] = d_c[0, 0] * vi[j]
             continue
         ad, bd, _, _, _ = signal.cont2discrete((a_c, b_c, c_c, d_c), dt, method="zoh")
-        nums, den_d = signal.ss2tf(ad, bd, np.eye(nx), np.zeros((nx, 1)))
-        x = np.stack([signal.lfilter(nums[r], den_d, vi) for r in range(nx)], axis=1)
+        x = _grid_states(ad, bd, vi)
         aug = np.zeros((nx + 1, nx + 1))
         aug[:nx, :nx] = a_c
         aug[:nx, nx] = b_c[:, 0]
@@ -103,6 +102,30 @@ def continuous_output(
         xs = np.einsum("mab,mb->ma", e[:, :nx, :nx], x[j]) + e[:, :nx, nx] * vi[j][:, None]
         out[pos, i] = xs @ c_c[0] + d_c[0, 0] * vi[j]
     return out
+
+
+_MODAL_COND = 1e10  # eigenvector condition above which the modes are not separated
+
+
+def _grid_states(ad: np.ndarray, bd: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The states ``x[j]`` of ``x[j+1] = Ad x[j] + Bd v[j]`` from rest, shape (n, nx).
+
+    Each mode of ``Ad`` is a first-order recursion (complex where the poles are), filtered
+    on its own and mapped back by the eigenvectors: exact to rounding. The state filters
+    ``ss2tf`` gives run one polynomial of the whole order each, which poles near 1 make
+    lose digits: on a refined XYZ axis with a 12 ms lag and a 20 Hz mode (order 5) the output
+    came out 4e-4 off, and the transforms inverted that error into the stored input. Where
+    the eigenvectors do not separate the modes (repeated poles) those filters are used.
+    """
+    nx = ad.shape[0]
+    lam, vecs = np.linalg.eig(ad)
+    if np.linalg.cond(vecs) <= _MODAL_COND:
+        bm = np.linalg.solve(vecs, bd[:, 0].astype(complex))
+        vc = v.astype(complex)
+        z = np.stack([signal.lfilter([0.0, bm[k]], [1.0, -lam[k]], vc) for k in range(nx)], 1)
+        return np.real(z @ vecs.T)
+    nums, den_d = signal.ss2tf(ad, bd, np.eye(nx), np.zeros((nx, 1)))
+    return np.stack([signal.lfilter(nums[r], den_d, v) for r in range(nx)], axis=1)
 
 
 _TAYLOR = 18  # degree of the series; the remainder at norm 1/2 is < 0.5^19 / 19! e^0.5 < 2e-23
