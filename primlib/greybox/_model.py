@@ -166,8 +166,11 @@ class GreyBox:
         return u
 
     def inverse(self, y: np.ndarray, origin: Any = None) -> np.ndarray:
-        """The input the fitted model says makes the machine follow ``y`` from ``origin``."""
-        u_lin, lin, non = self.terms(y, origin)
+        """The input the fitted model says makes the machine follow ``y`` from ``origin``
+        (the linear inverse with its start corrected: :func:`primlib.plant.invert`'s
+        ``correct_start``, which the fit's regressors do without)."""
+        u_lin = model_inverse(self.machine, np.asarray(y, dtype=float), corrected=True)
+        _, lin, non = self.terms(y, origin, u_lin)
         return u_lin + lin + non
 
     def describe(self) -> str:
@@ -203,8 +206,11 @@ def checked_origin(origin: Any, d: int, label: str = "origin") -> np.ndarray | N
     return o
 
 
-def model_inverse(machine: Machine, y: np.ndarray) -> np.ndarray:
-    return invert(machine, y, reference=y if machine.feedback else None)
+def model_inverse(machine: Machine, y: np.ndarray, corrected: bool = False) -> np.ndarray:
+    """The linear model's inverse of ``y``; ``corrected``: with the stable inverse's start
+    correction (an input that is the answer, not a fit's regressor)."""
+    ref = y if machine.feedback else None
+    return invert(machine, y, reference=ref, correct_start=corrected)
 
 
 def model_gap(machine: Machine, y: np.ndarray, u_lin: np.ndarray) -> np.ndarray:

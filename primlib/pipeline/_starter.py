@@ -32,7 +32,7 @@ from primlib.pipeline._greywarm import (
 )
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
-from primlib.plant import Machine
+from primlib.plant import Machine, invert
 from primlib.splice import Correction, RefinedModel, refine_machine, splice
 from primlib.store import Bank, Store, check_origin
 
@@ -245,12 +245,12 @@ class WarmStarter:
             :func:`primlib.match.default_eps` of the path.
         band, method : optional
             Transition band width (s) and time-scaling method of :func:`primlib.splice.splice`.
-        refine : bool
-            Transform on the model refined on the stored pairs (:meth:`refined_model`).
+        refine, modes : bool
+            Transform on the model refined on the stored pairs (:meth:`refined_model`);
+            ``modes``: with a structural mode per axis where the pairs show one.
         correction : Correction, optional
             Residual correction of :func:`primlib.splice.splice` (default
-            :class:`~primlib.splice.ErrorCorrection`; the designs it was compared with are in
-            ``benchmarks/_ablations.py``).
+            :class:`~primlib.splice.ErrorCorrection`; others: ``benchmarks/_ablations.py``).
         match : Match, optional
             A match already computed for this path and machine.
         origin : array of shape (d,), optional
@@ -261,10 +261,6 @@ class WarmStarter:
             carried by superposition, friction, ripple and bias re-evaluated on the new
             motion, per segment that or the model-only input (``WarmStart.model_u``),
             whichever predicts less error. False: spliced whole (the paper's method).
-        modes : bool
-            With ``refine``, also search each axis for a structural mode in series (a
-            compliant coupling, :func:`primlib.splice.refine_machine`); False: the gain,
-            time-constant scale and lag only.
         **kw
             Passed to :meth:`match`.
 
@@ -399,7 +395,10 @@ def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
     """The WarmStart with the grey-box model: nonlinear terms added, chosen per segment
     (``pts``: the path's samples in the frame it was matched in)."""
     ref = pts - pts[0]
-    u_lin, lin, non = gb.terms(ref, origin)
+    # the model-only input is an answer: the linear inverse with its start corrected
+    fb = ref if gb.machine.feedback else None
+    u_lin = invert(gb.machine, ref, reference=fb, correct_start=True)
+    u_lin, lin, non = gb.terms(ref, origin, u_lin)
     model_u, (before, after) = polish(gb, ref, u_lin + lin + non, origin)
     u, choices, predicted, shares = choose_per_segment(
         gb, bank, res.segments, res.sample_segment, res.u + non, model_u,

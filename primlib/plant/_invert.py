@@ -101,7 +101,14 @@ def _shifted_inverse(b, a, w, r, method):
     return v, used
 
 
-def invert(machine, y_desired, reference=None, reg: float = 1e-8, method: str = "auto"):
+def invert(
+    machine,
+    y_desired,
+    reference=None,
+    reg: float = 1e-8,
+    method: str = "auto",
+    correct_start: bool = False,
+):
     """Feedforward input for which the nominal model's output is ``y_desired``.
 
     Parameters
@@ -118,6 +125,9 @@ def invert(machine, y_desired, reference=None, reg: float = 1e-8, method: str = 
     method : {"auto", "causal", "stable", "lifted"}
         See the module docstring; ``"auto"`` picks "causal" for minimum-phase axes and
         "stable" for non-minimum-phase ones, per axis.
+    correct_start : bool
+        Where "stable" is used, take out what its truncated pre-actuation leaves, over the
+        first samples (module notes).
 
     Returns
     -------
@@ -166,12 +176,17 @@ def invert(machine, y_desired, reference=None, reg: float = 1e-8, method: str = 
         if cg is not None:
             v = v + signal.lfilter(cg[0], cg[1], w[:, i])
         u[:, i] = v
-        if used == "stable" and (k := _correction_length(b, int(rel[i]))):
+        if correct_start and used == "stable" and (k := _correction_length(b, int(rel[i]))):
             stable.append((i, k))
     if stable:
-        # what the truncated pre-actuation leaves, taken out over the first samples
-        e = w - machine.simulate(u)
-        h = machine.impulse_response(n)
-        for i, k in stable:
-            u[:k, i] += _start_correction(h[:, i], e[:, i], k, reg)
+        _correct_starts(machine, w, u, stable, reg)
     return u
+
+
+def _correct_starts(machine, w: np.ndarray, u: np.ndarray, axes, reg: float) -> None:
+    """What the truncated pre-actuation leaves, taken out of ``u`` (in place) over the first
+    samples of each ``(axis, k)`` of ``axes`` (module notes)."""
+    e = w - machine.simulate(u)
+    h = machine.impulse_response(w.shape[0])
+    for i, k in axes:
+        u[:k, i] += _start_correction(h[:, i], e[:, i], k, reg)
