@@ -8,6 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from path_helpers import DT
+from path_helpers import arc as _arc
+from path_helpers import line as _line
 
 from primlib.cli import main
 from primlib.io import write_path_csv, write_signal_csv
@@ -17,21 +20,6 @@ from primlib.store import Store
 
 ROOT = Path(__file__).resolve().parents[1]
 XYZ = ROOT / "data" / "machines" / "xyz.json"
-DT = 0.005
-
-
-def _minjerk(r):
-    return 10 * r**3 - 15 * r**4 + 6 * r**5
-
-
-def _arc(T):
-    s = _minjerk(np.arange(round(T / DT) + 1) * DT / T)
-    return np.stack([10 * np.sin(np.pi / 2 * s), 10 * (1 - np.cos(np.pi / 2 * s)), 3 * s], 1)
-
-
-def _line(T):
-    s = _minjerk(np.arange(round(T / DT) + 1) * DT / T)
-    return np.stack([12 * s, 0 * s, -2 * s], 1)
 
 
 def _machine_and_path(tmp_path, machine_json, stem, pts):

@@ -6,6 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from path_helpers import DT
+from path_helpers import arc as _arc
+from path_helpers import wave as _wave
 
 from primlib import NoMatchError
 from primlib.nurbs import Trajectory
@@ -14,21 +17,6 @@ from primlib.plant import Machine, invert
 from primlib.splice import refine_machine
 
 ROOT = Path(__file__).resolve().parents[1]
-DT = 0.005
-
-
-def _minjerk(r):
-    return 10 * r**3 - 15 * r**4 + 6 * r**5
-
-
-def _arc(T):
-    s = _minjerk(np.arange(round(T / DT) + 1) * DT / T)
-    return np.stack([10 * np.sin(np.pi / 2 * s), 10 * (1 - np.cos(np.pi / 2 * s)), 3 * s], 1)
-
-
-def _wave(T):
-    s = _minjerk(np.arange(round(T / DT) + 1) * DT / T)
-    return np.stack([12 * s, 3 * np.sin(2 * np.pi * s), -2 * s], 1)
 
 
 @pytest.fixture(scope="module")
