@@ -18,12 +18,13 @@ does not see the plant alone, and those axes keep their nominal model.
 A structural mode. A stage's carriage drives the measured point through a compliant
 coupling: a lightly damped mode ``R(s) = w^2 / (s^2 + 2 zeta w s + w^2)`` of unit static
 gain in series. No (g, c, τ) stands in for it, and the fit without it is biased as well as
-short: on issue 9's 20 Hz machine (zeta 0.05, dt 5 ms; the machine's own gain 1.08, time
-scale 1.15, lag 12 ms) the three parameters came out 1.24 / 1.147 / 13.2 ms and left 2.0 um
-RMS on the pairs. So a mode is searched too, per axis: its frequency on a logarithmic grid
-between ``_MODE_BAND[0] / dt`` and ``_MODE_BAND[1] / dt`` (the band the sample rate resolves;
-0.4 / dt is 80 Hz at 5 ms) with the other three held, then all five parameters by least
-squares from the best. It is kept only where it takes the RMS error on the pairs to at most
+short: on issue 9's 20 Hz machine (zeta 0.05, dt 5 ms; in this parametrisation the machine
+is g = 1.242, c = 1.15, tau = 12 ms) the three parameters came out 1.2385 / 1.1469 / 13.2 ms
+and left 2.0 um RMS on the pairs. So a mode is searched too, per axis: its frequency on a
+logarithmic grid between ``_MODE_BAND[0] / dt`` and ``_MODE_BAND[1] / dt`` (the band the
+sample rate resolves; 0.4 / dt is 80 Hz at 5 ms), each frequency held with gain and time
+scale while lag and damping take a few steps, then all five parameters by least squares from
+the best. It is kept only where it takes the RMS error on the pairs to at most
 ``_MODE_GAIN`` of the three-parameter fit's (a mode that merely bends the fit towards
 friction or noise lowers it by far less) and its frequency and damping are inside their
 bounds (at a bound it stands for something else). ``modes=False`` is the family of issue 9's
@@ -46,7 +47,7 @@ __all__ = ["RefinedModel", "refine_machine"]
 _BOUNDS = ((0.5, 0.5, 0.0), (2.0, 2.0, 0.2))  # g, c, tau [s]
 _MODE_BAND = (0.005, 0.4)  # mode frequency, Hz x dt: 1-80 Hz at dt = 5 ms
 _MODE_ZETA = (0.005, 1.0)  # its damping ratio
-_MODE_GRID = 12  # frequencies held in turn (each a few steps of the other four)
+_MODE_GRID = 12  # frequencies held in turn (lag and damping refitted a few steps at each)
 _MODE_GRID_NFEV = 6
 _MODE_GAIN = 0.5  # a mode is kept where it leaves at most this of the RMS error without it
 # no mode is searched where the fit without one leaves less than this of the axis's motion
@@ -193,8 +194,8 @@ def _fit_mode(resid, theta: np.ndarray, r1: np.ndarray, dt: float, starts):
 
     A mode's output error is a narrow valley in its frequency (about zeta wide), and the
     equation-error poles of ``starts`` are lost under noise of 1e-5 of the motion. So each
-    frequency of a grid over the band, and of ``starts``, is held while the other four
-    parameters are refitted a few steps, and the five are fitted together from the best.
+    frequency of a grid over the band, and of ``starts``, is held with gain and time scale
+    while lag and damping take a few steps, and the five are fitted together from the best.
     """
     lo = np.array([*_BOUNDS[0], _MODE_BAND[0] / dt, _MODE_ZETA[0]])
     hi = np.array([*_BOUNDS[1], _MODE_BAND[1] / dt, _MODE_ZETA[1]])
