@@ -165,11 +165,16 @@ class GreyBox:
             u[:, i] = u_lin[:, i] + replaced(F, u[:, i] - u_lin[:, i], v, fit)[0]
         return u
 
+    def linear_inverse(self, y: np.ndarray) -> np.ndarray:
+        """The linear model's inverse of ``y`` as an input to run: its start corrected
+        (:func:`primlib.plant.invert`'s ``correct_start``, which the fit's regressors do
+        without)."""
+        return model_inverse(self.machine, np.asarray(y, dtype=float), corrected=True)
+
     def inverse(self, y: np.ndarray, origin: Any = None) -> np.ndarray:
         """The input the fitted model says makes the machine follow ``y`` from ``origin``
-        (the linear inverse with its start corrected: :func:`primlib.plant.invert`'s
-        ``correct_start``, which the fit's regressors do without)."""
-        u_lin = model_inverse(self.machine, np.asarray(y, dtype=float), corrected=True)
+        (on :meth:`linear_inverse`)."""
+        u_lin = self.linear_inverse(y)
         _, lin, non = self.terms(y, origin, u_lin)
         return u_lin + lin + non
 

@@ -32,7 +32,7 @@ from primlib.pipeline._greywarm import (
 )
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
-from primlib.plant import Machine, invert
+from primlib.plant import Machine
 from primlib.splice import Correction, RefinedModel, refine_machine, splice
 from primlib.store import Bank, Store, check_origin
 
@@ -395,10 +395,7 @@ def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
     """The WarmStart with the grey-box model: nonlinear terms added, chosen per segment
     (``pts``: the path's samples in the frame it was matched in)."""
     ref = pts - pts[0]
-    # the model-only input is an answer: the linear inverse with its start corrected
-    fb = ref if gb.machine.feedback else None
-    u_lin = invert(gb.machine, ref, reference=fb, correct_start=True)
-    u_lin, lin, non = gb.terms(ref, origin, u_lin)
+    u_lin, lin, non = gb.terms(ref, origin, gb.linear_inverse(ref))
     model_u, (before, after) = polish(gb, ref, u_lin + lin + non, origin)
     u, choices, predicted, shares = choose_per_segment(
         gb, bank, res.segments, res.sample_segment, res.u + non, model_u,
