@@ -14,6 +14,11 @@ meant to be exact). Goals (issue 13): 2,400 samples against the
 bundled library <= 1 s, against 1,000 primitives <= 2 s; ``rotation none`` and time scale
 1-1 never slower than the default; 2,400 -> 24,000 samples x12 or less (``--long``).
 
+Below the table, each case's whole searches (the paper's Step 2 probes) and its CPU per
+search, path by path, and each restricted case's cost per search against the default's: a
+restricted search is cheaper one for one, but its answer has more, shorter segments, each
+cut proven by a search that fails one sample past it (``_per_search``).
+
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400]
 [--big [--big-cases CASE ...]] [--long] [--baseline REV | --no-baseline]
 [--cases default "rotation none" ...] [--glyph-chain] [--shrink F]``;
@@ -82,7 +87,7 @@ def worker(spec: dict) -> dict:
     out = {}
     for label in spec["cases"]:
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in CASES[label].items()}
-        times, cpu, segs, frac = [], [], [], []
+        times, cpu, segs, frac, probes = [], [], [], [], []
         for seed in spec.get("seeds", range(spec["paths"])):
             n = spec["samples"]
             if spec.get("file"):  # one stored path, timed ``paths`` times
@@ -99,14 +104,16 @@ def worker(spec: dict) -> dict:
             index = BankIndex(bank)  # first call: the index is built inside
             more, shortest = _min_segment(spec, segment_path, path.duration / (n - 1))
             t0, c0 = time.perf_counter(), time.process_time()
-            s, _ = segment_path(index, pts, path.duration / (n - 1), eps, **kw, **more)
+            s, info = segment_path(index, pts, path.duration / (n - 1), eps, **kw, **more)
             if shortest is not None:  # as match_path: matches shorter than it dropped after
                 s = drop_short(s, shortest / path.duration, 3)
             times.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)
             segs.append([(round(x.end, 9), x.primitive) for x in s])
             frac.append(sum(x.end - x.start for x in s if x.primitive is not None))
-        out[label] = {"times": times, "cpu": cpu, "segments": segs, "fraction": frac}
+            probes.append(int(info.get("probes", 0)))  # whole searches (the paper's Step 2)
+        out[label] = {"times": times, "cpu": cpu, "segments": segs, "fraction": frac,
+                      "probes": probes}  # fmt: skip
     return out
 
 
@@ -182,6 +189,32 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
     print("\nSegments / matched, path by path (the baseline's in brackets):")
     for label in spec["cases"]:
         print(f"- {label}: {_per_path_cuts(new[label], (old or {}).get(label))}")
+    _per_search(spec, new)
+
+
+def _per_search(spec: dict, new: dict) -> None:
+    """Whole searches (probes) and CPU per search, path by path, and for each restricted
+    case its CPU per search against the default's on the same path.
+
+    Every cut of an answer costs at least one whole search that fails a sample past it (the
+    proof that the prefix before it is the longest), so a case's time is at least its
+    segments times the cost of a failing search: a restricted answer with four times the
+    segments is never slower only if its searches cost a quarter of the default's. This
+    table tells the two apart: the cost of one search, and how many the answer needs."""
+    if not all(new[label].get("probes") for label in spec["cases"]):
+        return  # a revision whose worker does not count them
+    print("\nWhole searches (probes) / CPU ms per search, path by path:")
+    per = {}
+    for label in spec["cases"]:
+        r = new[label]
+        per[label] = [1e3 * c / max(p, 1) for c, p in zip(r["cpu"], r["probes"], strict=True)]
+        cells = ", ".join(f"{p} / {m:.1f}" for p, m in zip(r["probes"], per[label], strict=True))
+        print(f"- {label}: {cells}")
+    if "default" in per:
+        for label in (c for c in spec["cases"] if c != "default"):
+            ratios = [d / m for m, d in zip(per[label], per["default"], strict=True)]
+            print(f"- {label}, CPU per search against the default's (default / this, >1: "
+                  f"cheaper): {', '.join(f'{x:.2f}x' for x in ratios)}")  # fmt: skip
 
 
 def _per_path_cuts(r: dict, o: dict | None) -> str:

@@ -28,3 +28,21 @@ def test_worker_matches_a_short_novel_path_and_the_report_compares_path_by_path(
 
 def test_per_path_ratios_are_baseline_over_this_tree(bench):
     assert bench._per_path([1.0, 2.0], [1.5, 1.0]) == "1.00 / 1.50 (1.50x), 2.00 / 1.00 (0.50x)"
+
+
+def test_per_search_costs_divide_each_path_by_its_whole_searches(bench, capsys):
+    """CPU per whole search is each path's CPU over its probes, and a restricted case's
+    ratio is the default's cost per search over its own (> 1: the search is cheaper)."""
+    spec = {"cases": ["default", "rotation none"]}
+    new = {"default": {"cpu": [1.0, 0.6], "probes": [50, 30]},
+           "rotation none": {"cpu": [1.2, 0.2], "probes": [100, 40]}}  # fmt: skip
+    bench._per_search(spec, new)
+    text = capsys.readouterr().out
+    assert "- default: 50 / 20.0, 30 / 20.0" in text
+    assert "- rotation none: 100 / 12.0, 40 / 5.0" in text
+    assert "1.67x, 4.00x" in text
+
+
+def test_per_search_is_left_out_for_a_revision_that_does_not_count_searches(bench, capsys):
+    bench._per_search({"cases": ["default"]}, {"default": {"cpu": [1.0]}})
+    assert capsys.readouterr().out == ""
