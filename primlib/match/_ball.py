@@ -221,8 +221,5 @@ def _offer(
     search.stats.bounded += ws.size
     if ws.size == 0:
         return
-    lbs = search.speed_bound(aq, ws)
-    lb1 = search.first_bound(aq, ws)
-    lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
-    keep = lb1 < gates.at(ws)
-    search._drain(aq, gates, pool, ws[keep], lbs[keep], lbc[keep], True)
+    search.drain_bounded(aq, gates, pool, ws, search.speed_bound(aq, ws),
+                         search.first_bound(aq, ws))  # fmt: skip
