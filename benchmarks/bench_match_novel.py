@@ -15,9 +15,10 @@ bundled library <= 1 s, against 1,000 primitives <= 2 s; ``rotation none`` and t
 1-1 never slower than the default; 2,400 -> 24,000 samples x12 or less (``--long``).
 
 Below the table, each case's whole searches (the paper's Step 2 probes) and its CPU per
-search, path by path, and each restricted case's cost per search against the default's: a
-restricted search is cheaper one for one, but its answer has more, shorter segments, each
-cut proven by a search that fails one sample past it (``_per_search``).
+search, path by path, and each restricted case's cost per search against the default's
+(``_per_search``): a restricted answer has more, shorter segments, each cut proven by a
+search that fails one sample past it, so it is slower unless its searches are cheaper by as
+much.
 
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400]
 [--big [--big-cases CASE ...]] [--long] [--baseline REV | --no-baseline]
