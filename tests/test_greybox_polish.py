@@ -9,11 +9,12 @@ import math
 
 import numpy as np
 import pytest
-from test_greybox import ROOT, _coulomb_machine, _smooth_path
+from test_greybox import _coulomb_machine, _smooth_path
+from test_greybox_refit import _lagged
 
 from primlib.greybox import TERMS, GreyBox, forward_model, polish
 from primlib.greybox._features import speed_scale
-from primlib.plant import Machine, RealisticMachine, invert
+from primlib.plant import RealisticMachine, invert
 
 FC = 0.3
 
@@ -113,12 +114,11 @@ def test_the_forward_model_carries_the_fitted_forces():
     assert forward_model(gb, ripple=False).departures["x"]["ripple"] == 0.0
 
 
-def _lagged_coulomb_machine(fc: float, lag: float = 0.012):
-    """The xyz machine with a 12 ms lag per axis and Coulomb friction ``fc``: its sampled
-    model has a zero outside the unit circle, so its inverse is the stable (non-causal) one."""
-    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
-    plants = {a: (num, np.convolve(den, [lag, 1.0])) for a, (num, den) in xyz.plants.items()}
-    lin = Machine("xyz", xyz.dt, xyz.axes, plants)
+def _lagged_coulomb_machine(fc: float):
+    """The xyz machine with a 12 ms lag per axis (test_greybox_refit's) and Coulomb friction
+    ``fc``: its sampled model has a zero outside the unit circle, so its inverse is the
+    stable (non-causal) one."""
+    lin = _lagged()
     return RealisticMachine.from_machine(lin, coulomb=fc), lin
 
 
