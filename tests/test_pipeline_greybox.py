@@ -138,3 +138,46 @@ def test_a_translated_piece_carries_the_ripple_models_error_from_both_places(lib
     if w > 0:  # one segment, one share: the stored signal carried whole is recoverable
         whole = (moved.u - (1.0 - w) * moved.model_u) / w
         assert _err(moved.u, new, new[0]) < _err(whole, new, new[0])
+
+
+def test_in_place_the_model_is_judged_on_the_primitives_own_motion(library):
+    # a piece reused in place repeats its primitive's motion where it ran, so the model-only
+    # input misses there what the model misses on that pair, not the machine's average: a
+    # stored signal worth e (recorded) loses to a model whose residual on its own pair is
+    # all e (nothing left for the model to get wrong) although the other pairs' large
+    # residuals put the average far above e -- and keeps its place where its pair says the
+    # model is far off
+    import dataclasses
+
+    from primlib.pipeline._greywarm import ERROR_SPREAD, choose_per_segment
+
+    with Library(library, read_only=True) as lib:
+        bank = lib.bank("stage")
+        k = 1
+        offs = np.asarray(bank.offsets)
+        pts = np.asarray(bank.points)[offs[k] : offs[k + 1]]
+        ws = lib.warm_start(Trajectory.from_samples(pts, STAGE.dt), "stage", origin=pts[0])
+    (seg,) = ws.match.segments
+    assert seg.primitive == int(bank.ids[k])
+    e, d = 1e-3, bank.dim
+    worth = dataclasses.replace(bank, errors=np.full(len(bank.ids), e))
+    which = np.zeros(ws.u.shape[0], dtype=int)
+
+    def share(own: float) -> float:
+        r = np.full((len(bank.ids), d), 1.0 / np.sqrt(d))  # 1 mm on every other pair
+        r[k] = own / np.sqrt(d)
+        gb = dataclasses.replace(ws.greybox, cv_pairs=r)
+        # the machine's average mismatch is far above the stored signal's bound
+        assert model_error(gb, worth, ERROR_SPREAD) > 100 * ERROR_SPREAD * e
+        _, choices, predicted, shares = choose_per_segment(
+            gb, worth, [seg], which, ws.u, ws.model_u
+        )
+        return shares[0], predicted[0]
+
+    w, (stored, model) = share(e)  # the pair's residual is the stored signal's own error
+    assert w == 0.0 and stored == e and model == 0.0
+    w, (stored, model) = share(100 * e)  # the pair's residual is mostly the model's
+    assert model == pytest.approx(np.sqrt(1e4 - 1) * e, rel=1e-12)
+    # the share of bounds: e taken ERROR_SPREAD larger, the mismatch as small as that leaves
+    lo2 = (1e4 - ERROR_SPREAD**2) * e**2
+    assert w == pytest.approx(lo2 / ((ERROR_SPREAD * e) ** 2 + lo2), rel=1e-12)
