@@ -148,7 +148,12 @@ class WarmStarter:
         all_ids = [int(i) for i in np.asarray(bank.ids)]
         chosen = [i for i in ids if i in all_ids]
         chosen += [i for i in all_ids if i not in chosen][: max(0, _REFINE_MAX - len(chosen))]
-        key = (repr(machine.to_dict()), tuple(sorted(chosen)), gb is not None, modes)
+        # the fit sees the pairs in id order: the set decides the model, not which path asked
+        # first (the cache is keyed by the set; in match order a friction 5 % library's refined
+        # model, and the grey-box fitted beside it, differed in the 8th digit with the first
+        # path a process asked for, and a rotated path's model-only input 1.6e-4 against 6.8e-5)
+        chosen = sorted(chosen)
+        key = (repr(machine.to_dict()), tuple(chosen), gb is not None, modes)
         hit = self.refined.get(key)
         if hit is not None:
             self.refined.move_to_end(key)
