@@ -277,8 +277,8 @@ def choose_per_segment(
     error if larger. An unmatched segment has only the model. The shares are
     :func:`_weight`'s of bounds: the recorded errors taken :data:`ERROR_SPREAD` times larger
     and the mismatch (``model_error`` or ``pair_mismatch`` with ``spread=ERROR_SPREAD``) then
-    left; where the shares
-    change between segments the inputs are blended over a band of ``BAND_SAMPLES``.
+    left; where the shares change between segments the inputs are blended over a band of
+    ``BAND_SAMPLES``.
 
     Returns
     -------
