@@ -178,10 +178,17 @@ def pair_mismatch(gb: GreyBox, bank: Bank, spread: float = 1.0) -> np.ndarray:
     if gb.cv_pairs is None:
         return out
     rows = _paired(bank)
+    out[rows] = np.sqrt(_mismatch2(gb, bank, rows, spread))  # NaN stays NaN
+    return out
+
+
+def _mismatch2(gb: GreyBox, bank: Bank, rows: np.ndarray, spread: float) -> np.ndarray:
+    """Per pair (bank ``rows``, :func:`_paired`) max(r_l^2 - (spread e_l)^2, 0), NaN where
+    the fit left the pair out: :func:`pair_mismatch` squared, and :func:`model_error`'s
+    terms."""
     errors = spread * _known_errors(bank)[rows]
     r2 = np.sum(gb.cv_pairs**2, axis=1)
-    out[rows] = np.sqrt(np.maximum(r2 - errors**2, 0.0))  # NaN stays NaN
-    return out
+    return np.where(np.isfinite(r2), np.maximum(r2 - errors**2, 0.0), np.nan)
 
 
 def model_error(gb: GreyBox, bank: Bank, spread: float = 1.0) -> float:
@@ -201,12 +208,10 @@ def model_error(gb: GreyBox, bank: Bank, spread: float = 1.0) -> float:
     """
     rows = _paired(bank)
     counts = np.diff(np.asarray(bank.offsets)).astype(float)[rows]
-    errors = spread * _known_errors(bank)[rows]
-    r2 = np.sum(gb.cv_pairs**2, axis=1)
-    fitted = np.isfinite(r2)
+    m2 = _mismatch2(gb, bank, rows, spread)
+    fitted = np.isfinite(m2)
     n = counts[fitted]
-    m2 = np.maximum(r2[fitted] - errors[fitted] ** 2, 0.0)
-    return float(np.sqrt(np.sum(n * m2) / max(np.sum(n), 1.0)))
+    return float(np.sqrt(np.sum(n * m2[fitted]) / max(np.sum(n), 1.0)))
 
 
 def _weight(transformed: bool, stored_err: float, model_err: float) -> float:
