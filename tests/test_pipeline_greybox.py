@@ -163,15 +163,13 @@ def test_in_place_the_model_is_judged_on_the_primitives_own_motion(library):
     worth = dataclasses.replace(bank, errors=np.full(len(bank.ids), e))
     which = np.zeros(ws.u.shape[0], dtype=int)
 
-    def share(own: float) -> float:
+    def share(own: float) -> tuple[float, tuple[float, float]]:
         r = np.full((len(bank.ids), d), 1.0 / np.sqrt(d))  # 1 mm on every other pair
         r[k] = own / np.sqrt(d)
         gb = dataclasses.replace(ws.greybox, cv_pairs=r)
         # the machine's average mismatch is far above the stored signal's bound
         assert model_error(gb, worth, ERROR_SPREAD) > 100 * ERROR_SPREAD * e
-        _, choices, predicted, shares = choose_per_segment(
-            gb, worth, [seg], which, ws.u, ws.model_u
-        )
+        _, _, predicted, shares = choose_per_segment(gb, worth, [seg], which, ws.u, ws.model_u)
         return shares[0], predicted[0]
 
     w, (stored, model) = share(e)  # the pair's residual is the stored signal's own error
