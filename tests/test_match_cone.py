@@ -181,3 +181,28 @@ def test_shape_first_keeps_the_windows_of_the_speed_screen_first(library, quanti
     np.testing.assert_array_equal(rest, want[keep])
     np.testing.assert_array_equal(lbs, s4[keep])
     np.testing.assert_allclose(lbc, c[keep], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("chunk", [8, 12, 64, 1 << 16])
+def test_the_tiles_by_chunks_are_those_of_the_whole_level(chunk):
+    # the differences of the whole level (zero across a primitive's end and after the last
+    # point), reduced two by two (the last tile alone): the same numbers, bit for bit
+    from primlib.match._cone import first_tiles
+
+    rng = np.random.default_rng(chunk)
+    lv = _level(rng, [37, 1, 50, 2, 61], 3, 0.8).levels[0]
+    pts = lv.pts
+    dif = np.zeros_like(pts)
+    dif[:-1] = pts[1:] - pts[:-1]
+    dif[:-1][lv.prim[1:] != lv.prim[:-1]] = 0.0
+    want = (dif, dif, np.sqrt(np.einsum("ij,ij->i", dif, dif)))
+    for size in (1, 2, 4):
+        got = first_tiles(lv, size, chunk)
+        for a, b in zip(got, want, strict=True):
+            assert a.shape[0] == -(-pts.shape[0] // size)
+            assert a.tobytes() == b.tobytes()
+        n = want[0].shape[0]  # the next size: pairs, the last row alone when odd
+        want = tuple(
+            np.concatenate([op(a[0 : n - 1 : 2], a[1::2]), a[n - 1 :] if n % 2 else a[:0]])
+            for a, op in zip(want, (np.minimum, np.maximum, np.maximum), strict=True)
+        )
