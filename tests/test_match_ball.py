@@ -33,6 +33,22 @@ def _bound(pts, dil, m, k, q, sub) -> float:
     return math.sqrt(sub / k) * max(d1, d2)
 
 
+@pytest.mark.parametrize("chunk", [1, 7, 64, 1 << 16])
+@pytest.mark.parametrize(("dil", "sub"), [(1, 16), (2, 16), (3, 8)])
+def test_the_descriptors_by_chunks_are_those_of_the_whole_level(dil, sub, chunk):
+    # the half sums of every sub-window at once, in the same order: the same numbers
+    pts = np.random.default_rng(dil * sub).normal(size=(300, 3)) * 100.0
+    half = sub // 2
+    n = pts.shape[0] - (sub - 1) * dil
+    sums = pts[: n + half * dil].copy()
+    for i in range(1, half):
+        sums += pts[i * dil : i * dil + n + half * dil]
+    want = (sums[:n] - sums[half * dil : half * dil + n]) * (1.0 / sub)
+    got = _ball.descriptors(pts, dil, sub, chunk)
+    assert got.shape == want.shape and got.tobytes() == want.tobytes()
+    assert _ball.descriptors(pts[: (sub - 1) * dil], dil, sub, chunk).shape == (0, 3)
+
+
 @pytest.mark.parametrize("sub", _ball.SUBS)
 @pytest.mark.parametrize("d", [2, 3])
 def test_the_bound_is_below_the_rmsd_and_close_to_it_on_some_windows(d, sub):

@@ -99,9 +99,14 @@ _FIRST = 0.5  # the first ball's share of the gate
 _BUILD = 1 << 21  # windows a level's queries ask for before its tree is built
 
 
-def descriptors(pts: np.ndarray, dil: int, sub: int) -> np.ndarray:
+def descriptors(pts: np.ndarray, dil: int, sub: int, chunk: int = 1 << 16) -> np.ndarray:
     """f of every sub-window of ``sub`` points taking every ``dil``-th of ``pts``: its
     first half's centroid minus its second half's, halved.
+
+    Formed ``chunk`` sub-windows at a time: each one's half sums are the same additions in
+    the same order whatever the chunk (the same numbers); the whole level's sums at once
+    were two arrays the size of the level's points (48 MB each on 2 million points, fresh
+    memory: 0.13-0.2 s a tree there, against 0.017 s by chunks).
 
     Parameters
     ----------
@@ -117,12 +122,17 @@ def descriptors(pts: np.ndarray, dil: int, sub: int) -> np.ndarray:
     n = pts.shape[0] - (sub - 1) * dil
     if n <= 0:
         return np.empty((0, pts.shape[1]))
-    reach = n + half * dil  # half sums are needed from these starts on
-    sums = pts[:reach].copy()
-    for i in range(1, half):
-        sums += pts[i * dil : i * dil + reach]
-    out = sums[:n] - sums[half * dil : half * dil + n]
-    out *= 1.0 / sub  # (S1/half − S2/half)/2
+    out = np.empty((n, pts.shape[1]))
+    sums = np.empty((min(chunk, n) + half * dil, pts.shape[1]))
+    for r0 in range(0, n, chunk):
+        m = min(chunk, n - r0)
+        reach = m + half * dil  # half sums are needed from these starts on
+        s = sums[:reach]
+        s[...] = pts[r0 : r0 + reach]
+        for i in range(1, half):
+            s += pts[r0 + i * dil : r0 + i * dil + reach]
+        part = np.subtract(s[:m], s[half * dil : half * dil + m], out=out[r0 : r0 + m])
+        part *= 1.0 / sub  # (S1/half − S2/half)/2
     return out
 
 
