@@ -169,7 +169,8 @@ def _tree(index: ArcIndex, jb: int, dil: int, sub: int, n_windows: int):
         hit[1] = cKDTree(
             descriptors(pts, dil, sub), leafsize=32, balanced_tree=False, compact_nodes=False
         )
-        hit[2] = float(np.abs(pts).max()) if pts.size else 0.0
+        # max |x| as max(max x, −min x): the same number, without a copy of the level's points
+        hit[2] = max(float(pts.max()), -float(pts.min())) if pts.size else 0.0
     return hit[1], hit[2]
 
 
