@@ -206,3 +206,30 @@ def test_the_tiles_by_chunks_are_those_of_the_whole_level(chunk):
             np.concatenate([op(a[0 : n - 1 : 2], a[1::2]), a[n - 1 :] if n % 2 else a[:0]])
             for a, op in zip(want, (np.minimum, np.maximum, np.maximum), strict=True)
         )
+
+
+@pytest.mark.parametrize("rows", [1, 5, 64])
+def test_the_slopes_by_rows_are_those_of_the_whole_level(rows, monkeypatch):
+    # the sliding box and norm of the whole level's tiles at once (the last blocks reading
+    # what is left): the same float32 numbers, bit for bit, whatever rows a pass takes
+    import primlib.match._cone as cone
+
+    rng = np.random.default_rng(rows)
+    index = _level(rng, [37, 1, 50, 2, 61], 3, 0.8)
+    prim = index.levels[0].prim
+    for size, span in ((4, 9), (8, 31), (4, 23), (8, 9)):
+        w = 1 + -(-(span - 1) // size)
+        lo, hi, top = cone._tiles(index, 0, size)
+        n = top.shape[0]
+        box = [np.array([a[j : j + w].min(axis=0) for j in range(n)]) for a in (lo,)]
+        box += [np.array([a[j : j + w].max(axis=0) for j in range(n)]) for a in (hi, top)]
+        d = box[1] - box[0]
+        h = np.minimum(0.5 * np.sqrt(np.einsum("ij,ij->i", d, d)), box[2])
+        first = np.arange(n) * size
+        h[prim[first] != prim[np.minimum(first + w * size, prim.size - 1)]] = np.inf
+        want = h.astype(np.float32)
+        want[want < h] = np.nextafter(want[want < h], np.float32(np.inf))
+        monkeypatch.setattr(cone, "_ROWS", rows)
+        index.cache.pop(("cone", 0, size, w), None)
+        got = cone.block_slopes(index, 0, span, size)
+        assert got.dtype == np.float32 and got.tobytes() == want.tobytes(), (size, span)
