@@ -35,6 +35,7 @@ __all__ = [
     "choose_per_segment",
     "linear_parts",
     "model_error",
+    "pair_errors",
     "pair_mismatch",
     "ripple_shifts",
     "stored_errors",
@@ -77,6 +78,12 @@ def bank_pairs(bank: Bank) -> list[Pair]:
         o = org[i] if np.all(np.isfinite(org[i])) else None
         out.append(Pair(sig[sl], pts[sl] - pts[offs[i]], o))
     return out
+
+
+def pair_errors(bank: Bank) -> np.ndarray:
+    """The recorded ``error_rms`` of each primitive :func:`bank_pairs` gives, in its order
+    (NaN where unknown)."""
+    return np.asarray(bank.errors, dtype=float)[_paired(bank)]
 
 
 def linear_parts(

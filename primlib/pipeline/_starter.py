@@ -28,6 +28,7 @@ from primlib.pipeline._greywarm import (
     bank_pairs,
     choose_per_segment,
     linear_parts,
+    pair_errors,
     ripple_shifts,
 )
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
@@ -183,7 +184,7 @@ class WarmStarter:
                 )
             hit = fit_greybox(machine, pairs, linear=linear)
             if not linear:  # beside a refined model: refitted through its own run
-                hit = refit_greybox(hit, pairs)
+                hit = refit_greybox(hit, pairs, errors=pair_errors(bank))
             self.greyboxes[key] = hit
             while len(self.greyboxes) > self.refine_cache:
                 self.greyboxes.popitem(last=False)
