@@ -158,3 +158,26 @@ def test_a_step_to_parameters_no_machine_holds_is_refused_not_raised(friction_ca
     huge = ok.copy()
     huge[1] = 1e10
     assert _trial(ax, p0, huge) is None
+
+
+def test_each_pair_is_weighed_by_the_error_its_input_left(friction_case):
+    rm, pairs, _, _ = friction_case
+    # a fifth pair whose input ILC left 1 um off its path by the end (a drift): the machine
+    # went to y, the stored path is y + drift. Its recorded error says so; the exact pairs'
+    # say rounding
+    extra = _pairs(rm, _lagged(), 5, np.random.default_rng(0))[4]
+    drift = 1e-3 * np.linspace(0.0, 1.0, extra.y.shape[0])[:, None] * np.ones(3)
+    bad = [*pairs, Pair(extra.u, extra.y + drift, extra.origin)]
+    errors = [1e-9] * len(pairs) + [float(np.sqrt(np.mean(np.sum(drift**2, axis=1))))]
+    gb = fit_greybox(_lagged(gain=1.003, stretch=1.02, lag=0.9 * LAG), bad, linear=False)
+    plain = refit_greybox(gb, bad)
+    weighed = refit_greybox(gb, bad, errors=errors)
+    for i in range(rm.dim):
+        # unweighted the drift pulls the Coulomb level off (measured: 2.4e-4, 2.3e-3, 1.6e-3
+        # of it); weighed (the pair at 1e-9 / 5.8e-4 of the others' weight) it is the exact
+        # pairs' (measured: 4e-12 of it)
+        assert abs(plain.coef[i, _C] / FC - 1) > 1e-4
+        assert weighed.coef[i, _C] == pytest.approx(FC, rel=1e-6)
+    # without errors, or with every one alike, the fit is the plain one
+    same = refit_greybox(gb, bad, errors=[1e-3] * len(bad))
+    assert np.array_equal(same.coef, plain.coef)

@@ -321,10 +321,10 @@ def _weights(errors, k: int) -> np.ndarray:
     if errors is None:
         return np.ones(k)
     e = np.asarray(errors, dtype=float)
-    known = e[np.isfinite(e) & (e > 0)]
-    if not known.size:
+    known = e[np.isfinite(e)]
+    floor = float(np.median(known)) if known.size else 0.0
+    if not floor > 0.0:  # nothing to weigh by (none known, or most exact)
         return np.ones(k)
-    floor = float(np.median(known))
     e = np.where(np.isfinite(e), e, floor)
     return floor / np.maximum(e, floor)
 
