@@ -181,3 +181,21 @@ def test_each_pair_is_weighed_by_the_error_its_input_left(friction_case):
     # without errors, or with every one alike, the fit is the plain one
     same = refit_greybox(gb, bad, errors=[1e-3] * len(bad))
     assert np.array_equal(same.coef, plain.coef)
+
+
+def test_a_stribeck_term_is_kept_only_where_the_machine_has_one(friction_case):
+    _, _, gb, gb2 = friction_case
+    s = TERMS.index("stribeck")
+    # the input-side fit reads a plain Coulomb machine's reversals as a Stribeck term (x:
+    # 0.19 of the Coulomb level); the refit drops it (what is left: rounding)
+    assert gb.coef[0, s] > 0.1 * FC
+    assert np.all(np.abs(gb2.coef[:, s]) <= 1e-9 * FC)
+    # a machine whose static level is 1.3x the sliding one: kept. On y and z the input-side
+    # term is negative, so the run starts from the machine's own Stribeck velocity and finds
+    # the machine; on x from the input-side fit's (another shape), still well above none
+    rm = RealisticMachine.from_machine(_lagged(), coulomb=FC, static_ratio=1.3)
+    pairs = _pairs(rm, _lagged(), 4, np.random.default_rng(0))
+    gb = fit_greybox(_lagged(gain=1.003, stretch=1.02, lag=0.9 * LAG), pairs, linear=False)
+    got = refit_greybox(gb, pairs).coef[:, s]
+    assert got[0] > 0.1 * 0.3 * FC
+    assert got[1:] == pytest.approx(0.3 * FC, rel=1e-6)
