@@ -15,7 +15,7 @@ machine (:func:`forward_model`), and :func:`polish` corrects the model-only inpu
 from primlib.greybox._features import LINEAR, NONLINEAR, POSITION, TERMS
 from primlib.greybox._fit import fit_greybox
 from primlib.greybox._model import GreyBox, Pair
-from primlib.greybox._polish import forward_model, polish
+from primlib.greybox._polish import forward_model, model_residual, polish
 from primlib.greybox._refit import refit_greybox
 
 __all__ = [
@@ -27,6 +27,7 @@ __all__ = [
     "TERMS",
     "fit_greybox",
     "forward_model",
+    "model_residual",
     "polish",
     "refit_greybox",
 ]

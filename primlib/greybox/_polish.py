@@ -57,7 +57,7 @@ from primlib.plant import RealisticMachine, invert
 if TYPE_CHECKING:
     from primlib.greybox._model import GreyBox
 
-__all__ = ["forward_model", "polish", "POLISH_STEPS", "MAX_SAMPLES"]
+__all__ = ["forward_model", "model_residual", "polish", "POLISH_STEPS", "MAX_SAMPLES"]
 
 # corrections at most (module notes: on the model's own machine two to four reach rounding)
 POLISH_STEPS = 8
@@ -137,19 +137,12 @@ def polish(
     :data:`MAX_SAMPLES` samples.
     """
     u = np.asarray(u, dtype=float)
-    model = forward_model(gb, ripple=origin is not None)
-    if model is None or steps <= 0 or not 3 <= ref.shape[0] <= MAX_SAMPLES:
+    run = _runner(gb, ref, origin)
+    if run is None or steps <= 0 or not 3 <= ref.shape[0] <= MAX_SAMPLES:
         return u, (math.nan, math.nan)
-    # what the run on the model does not simulate is taken out as the analytic input put it
-    # in: the bias, a Stribeck term below the Coulomb level, every term of the other axes --
-    # the nonlinear terms of the coefficients less the simulated ones (the terms are linear
-    # in them)
-    rest = dataclasses.replace(gb, coef=gb.coef - _simulated(gb)[1])
-    fixed = rest.terms(ref, origin)[2]
-    start = np.zeros(ref.shape[1]) if origin is None else np.asarray(origin, dtype=float)
 
     def error(x: np.ndarray) -> tuple[np.ndarray, float]:
-        e = ref - model.simulate(x - fixed, start=start)
+        e = run(x)
         return e, float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
 
     e, r0 = error(u)
@@ -165,3 +158,32 @@ def polish(
         else:
             gain, failed = 0.5 * gain, failed + 1
     return best, (r0, r_best)
+
+
+def _runner(gb: GreyBox, ref: np.ndarray, origin):
+    """``x -> ref - (the model run as a machine on x)``, or None where :func:`forward_model`
+    does not apply."""
+    model = forward_model(gb, ripple=origin is not None)
+    if model is None:
+        return None
+    # what the run on the model does not simulate is taken out as the analytic input put it
+    # in: the bias, a Stribeck term below the Coulomb level, every term of the other axes --
+    # the nonlinear terms of the coefficients less the simulated ones (the terms are linear
+    # in them)
+    rest = dataclasses.replace(gb, coef=gb.coef - _simulated(gb)[1])
+    fixed = rest.terms(ref, origin)[2]
+    start = np.zeros(ref.shape[1]) if origin is None else np.asarray(origin, dtype=float)
+    return lambda x: ref - model.simulate(np.asarray(x, dtype=float) - fixed, start=start)
+
+
+def model_residual(
+    gb: GreyBox, ref: np.ndarray, u: np.ndarray, origin: np.ndarray | None = None
+) -> np.ndarray | None:
+    """What the input ``u`` leaves of the path ``ref`` (relative, shape (n, d)) on the
+    grey-box model run as a machine, shape (n, d): the error of a polished model-only input
+    where the model is the machine; None where :func:`polish` does not apply (it then
+    leaves the analytic input, whose own shortfall is :meth:`GreyBox.inverse_gap`)."""
+    run = _runner(gb, np.asarray(ref, dtype=float), origin)
+    if run is None or not 3 <= ref.shape[0] <= MAX_SAMPLES:
+        return None
+    return run(u)
