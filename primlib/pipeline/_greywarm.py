@@ -271,7 +271,9 @@ def choose_per_segment(
 
     Predicted RMS output errors (Euclidean over the axes): the model-only input's is
     sqrt(m^2 + g^2), m the model's mismatch and g the segment's RMS of ``gap``
-    (:meth:`GreyBox.inverse_gap` of the new path, shape (n, d); None: none). On a piece in
+    (what the model-only input leaves of the new path where the model is the machine, shape
+    (n, d): :meth:`GreyBox.inverse_gap`, or for a polished input
+    :func:`primlib.greybox.model_residual`; None: none). On a piece in
     place, or translated where no ripple's phase moves, m is the mismatch on its primitive's
     own motion (:func:`pair_mismatch`): the model-only input repeats that motion there;
     elsewhere it is the machine's average (:func:`model_error`). The
