@@ -322,7 +322,7 @@ def _rms(r: np.ndarray) -> float:
     return math.sqrt(float(r @ r) / max(r.size, 1))
 
 
-def _weights(errors, k: int) -> np.ndarray:
+def _weights(errors: np.ndarray | None, k: int) -> np.ndarray:
     """Per pair the factor its output error is taken with: ``e_med / max(e_l, e_med)``,
     ``e_l`` the error its stored input left on the machine, ``e_med`` their median (an
     unknown one counts as the median); all 1 without errors.
@@ -379,7 +379,10 @@ def _chosen(pairs: Sequence[Pair]) -> np.ndarray:
 
 
 def refit_greybox(
-    gb: GreyBox, pairs: Sequence[Pair], steps: int = REFIT_STEPS, errors=None
+    gb: GreyBox,
+    pairs: Sequence[Pair],
+    steps: int = REFIT_STEPS,
+    errors: Sequence[float] | np.ndarray | None = None,
 ) -> GreyBox:
     """``gb`` with, on each axis the polish simulates, the linear model's gain and real
     time constants and the Coulomb level refitted on output error through the model run as
