@@ -2,11 +2,15 @@
 windows it finds against every window scored, and the seeds with and without it."""
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import test_match_index_search as index_tests
 from _reference_search import ScanSearch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
 
 from primlib.match import BankIndex, SearchOptions, _ball
 from primlib.match._index_search import IndexSearch, _Gates
@@ -33,10 +37,12 @@ def _bound(pts, dil, m, k, q, sub) -> float:
     return math.sqrt(sub / k) * max(d1, d2)
 
 
+@pytest.mark.parametrize("stride", [1, 2, 4])
 @pytest.mark.parametrize("chunk", [1, 7, 64, 1 << 16])
 @pytest.mark.parametrize(("dil", "sub"), [(1, 16), (2, 16), (3, 8)])
-def test_the_descriptors_by_chunks_are_those_of_the_whole_level(dil, sub, chunk):
-    # the half sums of every sub-window at once, in the same order: the same numbers
+def test_the_descriptors_by_chunks_are_those_of_the_whole_level(dil, sub, chunk, stride):
+    # the half sums of every sub-window at once, in the same order: the same numbers, at
+    # the starts p with floor(p / dil) a multiple of the stride
     pts = np.random.default_rng(dil * sub).normal(size=(300, 3)) * 100.0
     half = sub // 2
     n = pts.shape[0] - (sub - 1) * dil
@@ -44,9 +50,10 @@ def test_the_descriptors_by_chunks_are_those_of_the_whole_level(dil, sub, chunk)
     for i in range(1, half):
         sums += pts[i * dil : i * dil + n + half * dil]
     want = (sums[:n] - sums[half * dil : half * dil + n]) * (1.0 / sub)
-    got = _ball.descriptors(pts, dil, sub, chunk)
+    want = want[(np.arange(n) // dil) % stride == 0]
+    got = _ball.descriptors(pts, dil, sub, stride, chunk)
     assert got.shape == want.shape and got.tobytes() == want.tobytes()
-    assert _ball.descriptors(pts[: (sub - 1) * dil], dil, sub, chunk).shape == (0, 3)
+    assert _ball.descriptors(pts[: (sub - 1) * dil], dil, sub, stride, chunk).shape == (0, 3)
 
 
 @pytest.mark.parametrize("sub", _ball.SUBS)
@@ -81,20 +88,59 @@ def test_the_radius_is_the_gate_scaled_with_a_small_margin():
     assert 0.1 * math.sqrt(25 / 16) < r < 0.1 * math.sqrt(25 / 16) * (1 + 1e-3)
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), stride=st.sampled_from([1, 2, 3, 4]),
+       sub=st.sampled_from(_ball.SUBS), d=st.sampled_from([2, 3]))  # fmt: skip
+def test_the_strided_balls_hold_every_window_below_the_radius_of_a_small_level(seed, stride,
+                                                                              sub, d):  # fmt: skip
+    # brute force: the translation RMSD of every window of a random level against a query
+    # (one of its windows bent and moved); the balls hold each one below the radius
+    rng = np.random.default_rng(seed)
+    dil = int(rng.integers(1, 4))
+    k = int(rng.integers(sub + stride - 1, 33))
+    pts = np.cumsum(rng.normal(size=(int(rng.integers((k - 1) * dil + 1, 400)), d)), axis=0)
+    span = (k - 1) * dil + 1
+    n = pts.shape[0] - span + 1
+    wins = np.stack([pts[m : m + span : dil] for m in range(n)])
+    q = wins[rng.integers(n)] + np.cumsum(rng.normal(size=(k, d)), axis=0) * 0.1
+    q += rng.normal(size=d) * 10.0
+    rho = np.array([_rmsd_translation(w, q) for w in wins])
+    r = float(np.quantile(rho, rng.uniform(0.01, 0.3)))
+    tree = cKDTree(_ball.descriptors(pts, dil, sub, stride))
+    coord = float(np.abs(pts).max())
+    aq = SimpleNamespace(n_windows=n, k=k, qc=q - q.mean(axis=0), dil=dil)
+    ws = _ball.candidates(aq, (tree, coord, stride), sub, r, n)
+    below = np.flatnonzero(rho < r)
+    assert below.size > 0 and np.isin(below, ws).all()
+    assert np.all(np.diff(ws) > 0)  # sorted, distinct
+    # and exactly the windows whose sub-windows at the stored starts are in the balls
+    f, fq = _ball.descriptors(pts, dil, sub), _ball.descriptors(aq.qc, 1, sub)
+    m = np.arange(n)
+    j = -(m // dil) % stride  # the first ball's offset; the last's: k - sub - j', j' < stride
+    j2 = k - sub - (m // dil + k - sub) % stride
+    far = np.maximum(np.linalg.norm(f[m + j * dil] - fq[j], axis=1),
+                     np.linalg.norm(f[m + j2 * dil] - fq[j2], axis=1))  # fmt: skip
+    rad = _ball.radius(r, k, sub, d, max(coord, float(np.abs(aq.qc).max())))
+    assert np.isin(np.flatnonzero(far < rad * (1 - 1e-9)), ws).all()
+    assert np.all(far[ws] <= rad * (1 + 1e-9))
+
+
 PIECES = [(0.0, 0.05), (0.2, 0.24), (0.5, 0.58), (0.3, 0.5), (0.7, 0.73)]
 
 
 @pytest.mark.parametrize("eps", [0.05, 0.5])
-def test_the_balls_hold_every_window_below_their_radius_and_few_others(novel, eps,
+@pytest.mark.parametrize("stride", [1, 2, 4])
+def test_the_balls_hold_every_window_below_their_radius_and_few_others(novel, eps, stride,
                                                                       monkeypatch):  # fmt: skip
     monkeypatch.setattr(_ball, "_BUILD", 0)  # a tree at a level's first query
+    monkeypatch.setattr(_ball, "STRIDE", stride)
     bank, path = novel
     found = 0
     for a, b in PIECES:
         search = IndexSearch(bank, SearchOptions(rotation="none"), chunk=256, first_batch=64)
         aq = search.arc_query(path, a, b, eps)
-        sub = _ball.SUBS[0]
-        assert aq.k >= sub and aq.n_windows > search.chunk
+        sub = next(s for s in _ball.SUBS if s + stride - 1 <= aq.k)
+        assert aq.n_windows > search.chunk
         gates = _Gates.of(aq, eps)
         got = _ball._tree(aq.index, aq.jb, aq.dil, sub, aq.n_windows)
         _, shape = search.score(aq, np.arange(aq.n_windows))
@@ -118,12 +164,15 @@ def copies():
     return bank, PathPiece(base + np.array([5.0, -3.0, 2.0]), 399 * DT)
 
 
+@pytest.mark.parametrize("stride", [1, 2])
 @pytest.mark.parametrize("target", [16, 8])
-def test_seeds_with_the_balls_are_those_of_every_window_scored(novel, copies, target,
+def test_seeds_with_the_balls_are_those_of_every_window_scored(novel, copies, target, stride,
                                                                monkeypatch):  # fmt: skip
-    # pieces of 16-31 arc samples (target 16) and 8-15 (target 8: the 8-point trees); on
-    # near copies the pool fills up below half the gate (one round), on the novel library not
+    # pieces of 16-31 arc samples (target 16) and 8-15 (target 8: the 8-point trees; with
+    # stride 2, 16 takes those too, and 8 none); on near copies the pool fills up below
+    # half the gate (one round), on the novel library not
     monkeypatch.setattr(_ball, "_BUILD", 0)  # a tree at a level's first query
+    monkeypatch.setattr(_ball, "STRIDE", stride)
     opts = SearchOptions(rotation="none")
     calls = []
     real = _ball.candidates
@@ -144,7 +193,8 @@ def test_seeds_with_the_balls_are_those_of_every_window_scored(novel, copies, ta
                 m.setattr(IndexSearch, "ball", False)
                 plain = IndexSearch(bank, opts, chunk=256, first_batch=64, target_points=target)
                 assert seeds == plain.seeds(path, a, b, eps)
-    assert rounds == {1, 2} and subs == {target}
+    assert rounds - {0} == {1, 2} and target in subs
+    assert (0 in rounds, subs) == ((False, {target}) if stride == 1 else (target == 8, {8, target}))
 
 
 def test_a_level_asked_for_few_windows_in_all_is_searched_without_a_tree(monkeypatch):
@@ -160,5 +210,6 @@ def test_a_level_asked_for_few_windows_in_all_is_searched_without_a_tree(monkeyp
     for _ in range(4):
         search = IndexSearch(bank, opts, chunk=256, first_batch=64)
         search.seeds(path, 0.2, 0.24, 0.05)
-        built.append(aq.index.cache[("ball", aq.jb, aq.dil, _ball.SUBS[0])][1] is not None)
+        key = ("ball", aq.jb, aq.dil, _ball.SUBS[0], _ball.STRIDE)
+        built.append(aq.index.cache[key][1] is not None)
     assert built == [False, False, True, True]

@@ -23,14 +23,23 @@ f = (w̄_1 − w̄_2)/2 (3 numbers in 3-D): L·|f(w) − f(q)|² ≤ K·ρ², th
 
     ρ ≥ √(L/K)·|f(w_S) − f(q_S)|.
 
-It holds for S the first L indices and for S the last L alike: the last L points of the
-window at m are the first L of the window at m + (K − L)·dil, so one tree of the
-descriptors of every L-point sub-window serves both. A window with ρ below a radius r
-therefore has both descriptors within r·√(K/L) of the query's: the windows in both balls
-hold every such window. L is 16 for queries of 16 or more arc samples, 8 for 8-15 (a tree
-each). Nothing here depends on the time scale or on the smoothing: the inequality is
-between the window's points and the query's arc samples exactly as the search scores them,
-and the gate already holds every tolerance (arc offset, smoothing, stored deviation).
+It holds for S any L consecutive indices j, ..., j + L − 1: the window at m, the points
+m + j·dil, ... of which are the sub-window of L points starting at m + j·dil. So one tree of
+the descriptors of the L-point sub-windows starting at every ``STRIDE``-th block of dil
+points (the starts p with ⌊p/dil⌋ ≡ 0 mod s, s = ``STRIDE``: a tree of 1/s of the points,
+1/s of the build) serves every window, each through its own offsets: for the first ball
+the j < s with ⌊m/dil⌋ + j ≡ 0 (mod s) (the sub-window at m + j·dil is a stored one:
+⌊(m + j·dil)/dil⌋ = ⌊m/dil⌋ + j), for the last the j' in K − L − s + 1 ... K − L with
+⌊m/dil⌋ + j' ≡ 0 (one of any s consecutive integers), so K ≥ L + s − 1. Each offset is a
+ball around the query's own descriptor of its samples j, ..., j + L − 1 (s balls a round
+and side, the stored starts they hold less j·dil; a window is found through one offset
+alone). A window with ρ below a radius r therefore has both descriptors within r·√(K/L) of
+the query's: the windows in both balls hold every such window. Nothing is bounded between
+neighbouring starts: each window's own points are in the inequality. L is 16 for queries
+of 15 + s or more arc samples, 8 for 7 + s to 14 + s (a tree each), none below. Nothing
+here depends on the time scale or on the smoothing: the inequality is between the window's
+points and the query's arc samples exactly as the search scores them, and the gate
+already holds every tolerance (arc offset, smoothing, stored deviation).
 
 **Two rounds.** The balls of r = g/2 (g the query's largest gate) first: their valid
 windows (:meth:`._gates.Gates.valid`) are bounded and drained into the pool as the search
@@ -47,7 +56,13 @@ half-gate balls hold a fraction of the windows of the gate's.
 Measured and dropped: four quarters, a 9-number descriptor, bound ~25 % tighter and left
 ~25 % fewer windows, but its tree cost 3x as much to build and to search (slower on 1,000
 primitives); 4-point sub-windows for queries of 4-7 samples held too many windows to pay;
-a first radius of 0.35 g or 0.7 g was slower than 0.5 g.
+a first radius of 0.35 g or 0.7 g was slower than 0.5 g. Stride 2 against 1 (every start):
+half the trees' build for ~15 % more windows bounded; stride 4 left ~50 % more bounded and
+the queries of 8-10 samples without a ball, and measured no faster than 2. A tree of every
+s-th start queried with a radius widened by a bound on how far f moves between
+neighbouring starts was dropped: that bound is the level's point spacing h a start (a
+step moves each of the L points by at most h, f by at most L·h/L), while the balls' radii
+are ~0.4 h, so the widened ball held ~40x the volume; the offsets above need no widening.
 
 **Round-off.** The search keeps a window whose *computed* ρ̂ is below the gate. ρ̂ comes
 from moments of the window and the query (:meth:`._index_search.IndexSearch.score`): sums
@@ -63,7 +78,7 @@ squared-distance comparison (about 10⁻⁶·c in all, far below any gate); the 
 skipped only where the threshold is below g/2 by a relative 10⁻⁹ (the combined score
 hypot(ρ̂, ·) ≥ ρ̂).
 
-**When.** Rotation ``"none"``, queries of at least 8 arc samples on levels of more than
+**When.** Rotation ``"none"``, queries of at least 7 + s arc samples on levels of more than
 ``search.chunk`` windows (fewer: bounding them all is as cheap). A level's tree is built
 once its queries have asked for 2²¹ windows in all (at the second query on a level of 2
 million, the 16th on one of 131,072): a tree costs ~0.2 µs a point to build and a ball
@@ -97,48 +112,72 @@ _U = 2.0**-53
 _MOST = 0.125  # a first ball holding more of the windows: the plain search
 _FIRST = 0.5  # the first ball's share of the gate
 _BUILD = 1 << 21  # windows a level's queries ask for before its tree is built
+STRIDE = 2  # a tree holds the sub-windows starting at every STRIDE-th block of dil points
 
 
-def descriptors(pts: np.ndarray, dil: int, sub: int, chunk: int = 1 << 16) -> np.ndarray:
-    """f of every sub-window of ``sub`` points taking every ``dil``-th of ``pts``: its
-    first half's centroid minus its second half's, halved.
+def descriptors(pts: np.ndarray, dil: int, sub: int, stride: int = 1,
+                chunk: int = 1 << 16) -> np.ndarray:  # fmt: skip
+    """f of the sub-windows of ``sub`` points taking every ``dil``-th of ``pts`` that start
+    at the points p with ⌊p/dil⌋ ≡ 0 (mod ``stride``) (every one with ``stride`` 1): each
+    one's first half's centroid minus its second half's, halved; in increasing p.
 
-    Formed ``chunk`` sub-windows at a time: each one's half sums are the same additions in
-    the same order whatever the chunk (the same numbers); the whole level's sums at once
-    were two arrays the size of the level's points (48 MB each on 2 million points, fresh
-    memory: 0.13-0.2 s a tree there, against 0.017 s by chunks).
+    The stored starts are blocks of dil consecutive points, one block in ``stride``: seen
+    as rows of stride·dil points, the i-th point of every sub-window of a block row b is
+    the slice (i mod stride)·dil of row b + ⌊i/stride⌋, so each half sum is ``sub``/2
+    strided views added (no gather). Each sum is the same additions in the same order
+    whatever ``stride`` and ``chunk`` (the same numbers); formed ``chunk`` points at a
+    time (the whole level's sums at once were arrays the size of the level, fresh memory).
 
     Parameters
     ----------
     pts : array, shape (M, d)
-    dil, sub : int
+    dil, sub, stride : int
         ``sub`` even.
 
     Returns
     -------
-    array, shape (M − (sub − 1)·dil, d)
+    array, shape (c, d)
+        c = ⌊n/(stride·dil)⌋·dil + min(n mod stride·dil, dil), n = M − (sub − 1)·dil.
     """
-    half = sub // 2
+    half, row, d = sub // 2, stride * dil, pts.shape[1]
     n = pts.shape[0] - (sub - 1) * dil
     if n <= 0:
-        return np.empty((0, pts.shape[1]))
-    out = np.empty((n, pts.shape[1]))
-    sums = np.empty((min(chunk, n) + half * dil, pts.shape[1]))
-    for r0 in range(0, n, chunk):
-        m = min(chunk, n - r0)
-        reach = m + half * dil  # half sums are needed from these starts on
-        s = sums[:reach]
-        s[...] = pts[r0 : r0 + reach]
-        for i in range(1, half):
-            s += pts[r0 + i * dil : r0 + i * dil + reach]
-        part = np.subtract(s[:m], s[half * dil : half * dil + m], out=out[r0 : r0 + m])
+        return np.empty((0, d))
+    count = (n // row) * dil + min(n % row, dil)
+    rows = -(-n // row)
+    extra = (sub - 1) // stride + 1  # rows past a chunk's own that its sub-windows read
+    out = np.empty((rows * dil, d))
+    step = max(1, chunk // dil)
+    for b0 in range(0, rows, step):
+        m = min(step, rows - b0)
+        loc = pts[b0 * row : (b0 + m + extra) * row]
+        if loc.shape[0] < (m + extra) * row:  # the level's end: zeros no kept start reads
+            loc = np.concatenate([loc, np.zeros(((m + extra) * row - loc.shape[0], d))])
+        x = loc.reshape(m + extra, row, d)
+        s1, s2 = (_half_sum(x, m, i0, half, dil, stride) for i0 in (0, half))
+        part = np.subtract(s1, s2, out=out[b0 * dil : (b0 + m) * dil].reshape(m, dil, d))
         part *= 1.0 / sub  # (S1/half − S2/half)/2
-    return out
+    return out[:count]
+
+
+def _half_sum(x: np.ndarray, m: int, i0: int, half: int, dil: int, stride: int) -> np.ndarray:
+    """Σ_{i0 ≤ i < i0 + half} of the i-th points of the sub-windows of rows 0..m − 1 of
+    ``x`` (rows of stride·dil points), added in increasing i; shape (m, dil, d)."""
+
+    def term(i: int) -> np.ndarray:
+        c = (i % stride) * dil
+        return x[i // stride : i // stride + m, c : c + dil]
+
+    s = term(i0).copy()
+    for i in range(i0 + 1, i0 + half):
+        s += term(i)
+    return s
 
 
 def query_descriptors(qc: np.ndarray, sub: int) -> tuple[np.ndarray, np.ndarray]:
     """f of the query's first and last ``sub`` arc samples, each shape (d,)."""
-    return descriptors(qc[:sub], 1, sub)[0], descriptors(qc[-sub:], 1, sub)[0]
+    f = descriptors(qc, 1, sub)
+    return f[0], f[-1]
 
 
 def radius(rho: float, k: int, sub: int, d: int, coord: float) -> float:
@@ -151,14 +190,15 @@ def radius(rho: float, k: int, sub: int, d: int, coord: float) -> float:
 
 
 def _tree(index: ArcIndex, jb: int, dil: int, sub: int, n_windows: int):
-    """The k-d tree of level jb's descriptors of ``sub``-point sub-windows at dilation dil,
-    and the level's largest |coordinate|; None until the level's queries (of
+    """The k-d tree of level jb's descriptors of the ``sub``-point sub-windows at dilation
+    dil that start at every ``STRIDE``-th block of dil points (:func:`descriptors`), the
+    level's largest |coordinate| and the stride; None until the level's queries (of
     ``n_windows`` windows each) have asked for ``_BUILD`` windows in all, then built and
     kept."""
-    key = ("ball", jb, dil, sub)
+    key = ("ball", jb, dil, sub, STRIDE)
     hit = index.cache.get(key)
     if hit is None:
-        hit = index.cache[key] = [0, None, 0.0]
+        hit = index.cache[key] = [0, None, 0.0, STRIDE]
     if hit[1] is None:
         hit[0] += n_windows
         if hit[0] < _BUILD:
@@ -167,11 +207,14 @@ def _tree(index: ArcIndex, jb: int, dil: int, sub: int, n_windows: int):
 
         pts = index.levels[jb].pts
         hit[1] = cKDTree(
-            descriptors(pts, dil, sub), leafsize=32, balanced_tree=False, compact_nodes=False
+            descriptors(pts, dil, sub, hit[3]),
+            leafsize=32,
+            balanced_tree=False,
+            compact_nodes=False,
         )
         # max |x| as max(max x, −min x): the same number, without a copy of the level's points
         hit[2] = max(float(pts.max()), -float(pts.min())) if pts.size else 0.0
-    return hit[1], hit[2]
+    return hit[1], hit[2], hit[3]
 
 
 def candidates(aq: ArcQuery, got: tuple, sub: int, rho: float, n_most: int) -> np.ndarray | None:
@@ -180,21 +223,32 @@ def candidates(aq: ArcQuery, got: tuple, sub: int, rho: float, n_most: int) -> n
     module notes); ``got``: :func:`_tree`'s; None when the first ball holds more than
     ``n_most``."""
     n, k = aq.n_windows, aq.k
-    tree, coord = got
-    f1, f2 = query_descriptors(aq.qc, sub)
+    tree, coord, stride = got
+    fq = descriptors(aq.qc, 1, sub)  # f of every sub-window of the query
     r = radius(rho, k, sub, aq.qc.shape[1], max(coord, float(np.abs(aq.qc).max())))
-    first = np.asarray(tree.query_ball_point(f1, r, return_sorted=False), dtype=np.int64)
-    first = first[first < n]
+    first = _starts(tree, fq, 0, r, aq.dil, stride, n)
     if first.size > n_most:
         return None
-    last = np.asarray(tree.query_ball_point(f2, r, return_sorted=False), dtype=np.int64)
-    last -= (k - sub) * aq.dil  # the window whose last sub points these are
-    last = last[(last >= 0) & (last < n)]
+    last = _starts(tree, fq, k - sub - stride + 1, r, aq.dil, stride, n)
     seen = np.zeros(n, dtype=bool)
     seen[first] = True
     out = last[seen[last]]
     out.sort()
     return out
+
+
+def _starts(tree, fq: np.ndarray, j0: int, r: float, dil: int, stride: int,
+            n: int) -> np.ndarray:  # fmt: skip
+    """Starts m < n of the windows whose sub-window at offset j (j0 ≤ j < j0 + stride, the
+    one with ⌊m/dil⌋ + j ≡ 0 mod stride: a stored start) has its descriptor within r of
+    the query's, fq[j] (module notes)."""
+    hits = tree.query_ball_point(fq[j0 : j0 + stride], r, return_sorted=False)
+    out = []
+    for j, h in enumerate(hits, start=j0):  # one ball a phase: at most 4 of them
+        t = np.asarray(h, dtype=np.int64)
+        m = t // dil * (stride * dil) + t % dil - j * dil  # stored start minus j points
+        out.append(m[(m >= 0) & (m < n)])
+    return np.concatenate(out)
 
 
 def search(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: CandidatePool) -> bool:
@@ -205,7 +259,7 @@ def search(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: CandidatePool)
     notes)."""
     if not search.ball or search.opts.rotation != "none" or aq.n_windows <= search.chunk:
         return False
-    sub = next((s for s in SUBS if s <= aq.k), None)
+    sub = next((s for s in SUBS if s + STRIDE - 1 <= aq.k), None)
     if sub is None:
         return False
     got = _tree(aq.index, aq.jb, aq.dil, sub, aq.n_windows)
