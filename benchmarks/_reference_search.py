@@ -7,8 +7,9 @@
     The time-uniform grid (``primlib.match._grid.GridSearch``) on every piece, not only on
     pieces too short in arc length: every primitive × start × time scale, vectorised.
 ``loop``
-    The grid's candidates, one ``kabsch`` call each and no pruning: the plain per-candidate
-    loop the benchmark times against.
+    The grid's candidates, every one resampled and scored by one ``kabsch`` call, no
+    bound: the plain per-candidate loop the benchmark times against
+    (:func:`every_window_seeds` scores every window with any scorer).
 ``invariant-bound``
     The index search with the rotation-invariant bound for every rotation family (the
     baseline of the per-axis bounds of ``rotation="none"`` and ``"z"``).
@@ -28,11 +29,14 @@ from primlib.match._bank import as_index
 from primlib.match._bounds import half_bound_margin, half_window_bound
 from primlib.match._grid import GridSearch
 from primlib.match._index_search import ArcQuery, IndexSearch
+from primlib.match._options import Candidate, PathPiece
+from primlib.match._pool import suppress
 from primlib.match._segment import resolve_options, segment_with
 
 __all__ = [
     "ScanSearch",
     "LoopSearch",
+    "every_window_seeds",
     "GridSearch",
     "InvariantBoundSearch",
     "reference_segment_path",
@@ -87,13 +91,40 @@ class _NamedGrid(GridSearch):
 
 
 class LoopSearch(GridSearch):
-    """The same grid as :class:`GridSearch`, one Kabsch call per candidate."""
+    """The same grid as :class:`GridSearch`, every window resampled and scored by one
+    Kabsch call, no bound."""
 
     name: ClassVar[str] = "loop"
 
-    def _score(self, res, starts, q, qc, sq, k, rotation, gate, scratch=None) -> np.ndarray:
-        self.stats.scored += starts.size
-        return np.array([kabsch(res[m : m + k], q, rotation=rotation).rmsd for m in starts])
+    def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        def loop(pts: np.ndarray, q: np.ndarray) -> np.ndarray:
+            return np.array([kabsch(p, q, rotation=self.opts.rotation).rmsd for p in pts])
+
+        return every_window_seeds(self, path, a, b, eps, loop)
+
+
+def every_window_seeds(grid: GridSearch, path: PathPiece, a: float, b: float, eps: float,
+                       score) -> list[Candidate]:  # fmt: skip
+    """:meth:`GridSearch.seeds` with every window of every scale resampled and scored by
+    ``score(points (m, K, d), query (K, d)) -> rmsd (m,)``: its windows below their gates,
+    the ``8·seeds`` best of each scale by (RMSD, primitive, start), then suppression."""
+    k, d = grid.opts.grid_points, grid.bank.points.shape[1]
+    q = path.at(np.linspace(a, b, k))
+    pool: list[Candidate] = []
+    grid.stats.queries += 1
+    for sc in grid._scales(path, a, b):
+        m = np.concatenate([np.arange(n) for n in sc.n_start])
+        prim, x0 = np.repeat(sc.prim, sc.n_start), m * sc.h
+        at = ((m[:, None] + np.arange(k)) * sc.h).ravel()
+        pts = grid._resample(np.repeat(prim, k), at).reshape(m.size, k, d)
+        rmsd = score(pts, q)
+        grid.stats.windows += m.size
+        grid.stats.scored += m.size
+        ok = np.flatnonzero(rmsd < eps + grid._slack(prim, x0, sc))
+        top = ok[np.lexsort((x0[ok], prim[ok], rmsd[ok]))[: 8 * grid.opts.seeds]]
+        pool += [Candidate(int(prim[t]), float(x0[t]), float(x0[t] + sc.dur), float(rmsd[t]))
+                 for t in top]  # fmt: skip
+    return suppress(pool, grid.opts.seeds)
 
 
 def reference_segment_path(

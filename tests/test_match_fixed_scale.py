@@ -8,7 +8,8 @@ import pytest
 from test_match_index_search import DT, _harmonics
 
 from primlib.match import BankIndex, kabsch, segment_path
-from primlib.match._grid import GridSearch
+from primlib.match._grid import GridSearch, _Scale
+from primlib.match._grid_bound import speed_bounds
 from primlib.match._index_search import IndexSearch
 from primlib.match._segment import _GRID_BANK, resolve_options, seeder_for
 from primlib.store import Bank
@@ -52,7 +53,9 @@ def test_the_grid_cell_slack_takes_the_largest_step_of_the_window_stretch(dur, c
         v = np.concatenate([np.full(150, 0.01), np.full(150, 1.0)])[:, None] * rng.normal(size=3)
         prims.append(np.cumsum(v * rng.uniform(0.5, 1.5, (300, 1)), axis=0))
     bank = BankIndex(Bank.from_samples(prims, DT))
-    got = GridSearch(bank, resolve_options("full", None, None))._local_steps(dur, cell)
+    grid = GridSearch(bank, resolve_options("full", None, None))
+    sc = _Scale(np.arange(bank.k), np.ones(bank.k, dtype=np.int64), dur, dur / 15, cell)
+    got = grid._local_steps(sc, np.arange(bank.points.shape[0]))
     pts, offsets = bank.points, bank.offsets
     step = np.r_[np.linalg.norm(np.diff(pts, axis=0), axis=1), 0.0]
     step[offsets[1:] - 1] = 0.0  # no step from one primitive to the next
@@ -64,11 +67,19 @@ def test_the_grid_cell_slack_takes_the_largest_step_of_the_window_stretch(dur, c
     np.testing.assert_allclose(bank.max_step(), np.maximum.reduceat(step, offsets[:-1]), rtol=1e-14)
     # far below the primitive's largest step where a window starts slow and stays slow
     assert got[offsets[1] + 10] < 0.05 * bank.max_step()[1]  # reaches sample 75 at most
+    # a stretch's steps: at or above those of every start in [a, a + extra], its speed
+    # bounds' too (module notes of _grid_bound)
+    speed = speed_bounds(bank.points, bank.offsets)
+    for extra in (0, 3, 40):
+        at = np.arange(pts.shape[0])
+        wide = grid._stretch_steps(sc, at, extra)
+        assert np.all(wide >= [got[j : j + extra + 1].max() for j in at])
+        lo, hi = sc.back, sc.size - sc.back + extra
+        assert np.all(wide >= [speed[max(j - lo, 0) : j + hi].max() for j in at])
 
 
-def test_the_grid_resamples_and_takes_moments_as_cubic_at_and_the_gathered_sums_do():
-    # the coefficient table and the moments by slices: the same numbers to the last bit
-    from primlib.match._grid import _cumsums, _window_moments
+def test_the_grid_resamples_as_cubic_at_does():
+    # the coefficient table: the same numbers as cubic_at to the last bit
     from primlib.match._interp import cubic_at
 
     bank, _ = _bank(20)
@@ -80,28 +91,3 @@ def test_the_grid_resamples_and_takes_moments_as_cubic_at_and_the_gathered_sums_
     x[:50], x[50:100] = counts[:50] - 1.0, np.floor(x[50:100])  # the ends; on samples
     want = cubic_at(bank.points, bank.offsets[prim], counts, x)
     np.testing.assert_array_equal(grid._resample(prim, x), want)
-    cs, cs2 = _cumsums(want)
-    starts, k = np.sort(rng.choice(want.shape[0] - 16, 900, replace=False)), 16
-    sx, sxx = cs[starts + k] - cs[starts], cs2[starts + k] - cs2[starts]
-    sp = sxx - sx * sx / k
-    np.testing.assert_array_equal(_window_moments(cs, cs2, starts, k, True), sp)
-    np.testing.assert_array_equal(_window_moments(cs, cs2, starts, k, False), sp.sum(axis=1))
-
-
-@pytest.mark.parametrize("d", [2, 3])
-@pytest.mark.parametrize("n", [1, 17, 5000])
-def test_the_grid_running_sums_and_means_are_numpys_to_the_last_bit(d, n):
-    # the paired (complex) running sums, and the column means from running sums: numpy's
-    # own cumsum and mean, bit for bit (the grid's seeds and RMSDs come from them)
-    from primlib.match._grid import _column_means, _cumsums, _Scratch
-
-    rng = np.random.default_rng(n + d)
-    x = rng.normal(size=(n, d)) * 40.0 + rng.normal(size=d) * 300.0
-    for scratch in (None, _Scratch()):
-        cs, cs2 = _cumsums(x, scratch)
-        np.testing.assert_array_equal(cs, np.vstack([np.zeros(d), np.cumsum(x, axis=0)]))
-        np.testing.assert_array_equal(cs2, np.vstack([np.zeros(d), np.cumsum(x * x, axis=0)]))
-        np.testing.assert_array_equal(_column_means(x, scratch), x.mean(axis=0))
-    # a strided array (its rows not contiguous) takes numpy's mean itself
-    wide = rng.normal(size=(n, 2 * d))[:, ::2]
-    np.testing.assert_array_equal(_column_means(wide), wide.mean(axis=0))

@@ -6,10 +6,29 @@ Query sampled at K = ``grid_points`` (16) uniform-time points. Every primitive; 
 duration D = k·(query duration) for k on a geometric grid over ``time_scale`` with ratio at
 most ``scale_ratio`` (1.1, so 30 scales over 0.25–4); for each D the primitive is resampled
 at the stride h = D/(K − 1) and every start m·h (m = 0, 1, ...) is a candidate whose K points
-are K consecutive resampled points. The window second moments come from cumulative sums,
-the cross-covariances from one product over a strided window view, and the RMSD of every
-window that the radius-of-gyration bound (:func:`primlib.match._bounds.gyration_bound`)
-does not already put at or above its gate from ``rmsd_from_moments`` (no rotation formed).
+are K consecutive resampled points. A candidate is one below its gate (eps plus the cell
+slack, :meth:`GridSearch._slack`); of each scale the ``8·seeds`` best by (RMSD, primitive,
+start) enter the pool, and greedy suppression keeps the ``seeds`` best distinct ones.
+
+Most windows are never resampled. For K points w_i (chord c_w = w_K − w_1) against the
+query's q_i (chord c_q), any motion's residuals e_i = R w_i + t − q_i give
+K ρ² ≥ |e_1|² + |e_K|² ≥ |e_K − e_1|²/2 = |R c_w − c_q|²/2, so
+
+    ρ ≥ g(c_w)/√(2K),   g(c) = min_R |R c − c_q|
+
+(|c − c_q|, ||c| − |c_q|| or, about z, hypot(|c_xy| − |c_q,xy|, c_z − c_q,z)); g is
+1-Lipschitz and the interpolant P is Λ-Lipschitz with Λ the largest of |d_i| +
+max(|d_{i−1} − d_i|, |d_{i+1} − d_i|)/2 over the intervals crossed (d_i the stored steps),
+so over s consecutive windows between two anchor windows (values v_j, v_{j+1})
+g(c_w) ≥ (v_j + v_{j+1})/2 − Λ·s·h (:mod:`._grid_bound`, with the proofs). The anchors are P
+at every s-th grid point (s divides K − 1: an anchor window's end is an anchor too). A
+stretch whose bound is beyond its gate, or beyond the scale's ``8·seeds``-th best RMSD found
+so far (stretches taken smallest bound first), cannot enter the pool: it is dropped, with a
+margin for round-off (:func:`._grid_bound.beyond`). The windows of the others are resampled;
+their own endpoint bound and the radius-of-gyration bound
+(:func:`primlib.match._bounds.gyration_bound`) drop more, and the rest are centred each on
+its own mean and scored by ``rmsd_from_moments`` (no rotation formed). The seeds are those
+of scoring every window so (``benchmarks/_reference_search.every_window_seeds``).
 
 The index search falls back on it for (nearly) stationary or very short pieces; the tests
 and benchmarks also run it on whole paths as the exhaustive reference.
@@ -28,6 +47,15 @@ from scipy.ndimage import maximum_filter1d
 
 from primlib.match._bank import BankIndex
 from primlib.match._bounds import gyration_bound
+from primlib.match._grid_bound import (
+    Best,
+    anchor_values,
+    beyond,
+    endpoint_gap,
+    speed_bounds,
+    stretch_bounds,
+    stretch_length,
+)
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import suppress
@@ -81,135 +109,87 @@ def _coefficient_table(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     return tab
 
 
-class _Scratch:
-    """Arrays kept by name from one time scale to the next (the first scale, the shortest
-    stride, needs the largest): the grid's arrays of every resampled point (3.5 M points a
-    scale on 1,000 primitives) written into the same memory, not fresh each scale."""
+@dataclass(frozen=True)
+class _Query:
+    """The query's K centred points, their second moments (per axis for ``"z"``), its
+    radius of gyration, chord (the endpoint bound's c_q, :mod:`._grid_bound`) and largest
+    coordinate magnitude."""
 
-    def __init__(self) -> None:
-        self._arrays: dict[str, np.ndarray] = {}
+    qc: np.ndarray
+    sq: np.ndarray | float
+    rg: float
+    chord: np.ndarray
+    extent: float
 
-    def __call__(self, name: str, shape: tuple[int, ...], dtype: type = float) -> np.ndarray:
-        size = math.prod(shape)
-        buf = self._arrays.get(name)
-        if buf is None or buf.size < size:
-            buf = self._arrays[name] = np.empty(size, dtype)
-        return buf[:size].reshape(shape)
-
-
-def _array(scratch: _Scratch | None, name: str, shape: tuple[int, ...]) -> np.ndarray:
-    return np.empty(shape) if scratch is None else scratch(name, shape)
-
-
-def _cumsums(x: np.ndarray, scratch: _Scratch | None = None):
-    """Cumulative sums of x and x², a zero row first, shape (n + 1, d) each: views of one
-    array holding each x and x² as the real and imaginary parts of a complex number, so one
-    running sum adds both (complex addition adds the parts alone: the same additions in the
-    same order as two sums; 52 against 91 ms on 3.5 M points in 3-D)."""
-    n, d = x.shape
-    both = _array(scratch, "cs", (n + 1, d, 2))
-    both[0] = 0.0
-    both[1:, :, 0] = x
-    np.multiply(x, x, out=both[1:, :, 1])
-    pairs = both.view(np.complex128)[:, :, 0]
-    np.cumsum(pairs[1:], axis=0, out=pairs[1:])
-    return both[:, :, 0], both[:, :, 1]
+    @classmethod
+    def of(cls, q: np.ndarray, rotation: str) -> _Query:
+        qc = q - q.mean(axis=0)
+        sq = (qc * qc).sum(axis=0) if rotation == "z" else float((qc * qc).sum())
+        rg = math.sqrt(float(np.sum(sq)) / q.shape[0])
+        return cls(qc, sq, rg, q[-1] - q[0], float(np.abs(q).max()))
 
 
-def _column_means(x: np.ndarray, scratch: _Scratch | None = None) -> np.ndarray:
-    """``x.mean(axis=0)`` of an (n, d) array with contiguous rows, the same numbers: numpy
-    sums down the first axis a row at a time, each column's running sum, which 1-D
-    cumulative sums give, two columns at once as the parts of complex numbers (3.5 M
-    points in 3-D: 23 against 50 ms)."""
-    n, d = x.shape
-    if x.strides[1] != x.itemsize:
-        return x.mean(axis=0)
-    run = _array(scratch, "tmp", (2 * n,)).view(np.complex128)  # free while res is centred
-    total = np.empty(d)
-    for j in range(0, d - 1, 2):
-        both = np.cumsum(x[:, j : j + 2].view(np.complex128)[:, 0], out=run)[-1]
-        total[j], total[j + 1] = both.real, both.imag
-    if d % 2:
-        total[-1] = np.cumsum(x[:, -1], out=run.view(float)[:n])[-1]
-    return total / n
+@dataclass(frozen=True)
+class _Scale:
+    """One time scale: the primitives long enough (``prim``), their window counts, the
+    duration D and stride h (samples), the cell half-width c, and the stretch of steps a
+    window's slack takes, [j − back, j − back + size) for a start in [j, j + 1)
+    (:meth:`GridSearch._local_steps`)."""
 
+    prim: np.ndarray
+    n_start: np.ndarray
+    dur: float
+    h: float
+    cell: float
 
-def _window_moments(
-    cs: np.ndarray,
-    cs2: np.ndarray,
-    starts: np.ndarray,
-    k: int,
-    per_axis: bool,
-    scratch: _Scratch | None = None,
-):
-    """Σ|p − p̄|² of the windows [m, m + k) from cumulative sums (per axis if asked).
+    @property
+    def back(self) -> int:
+        return math.ceil(self.cell) + 1
 
-    Taken at every position with slices, then gathered at ``starts`` (once, after the sum
-    over the axes): the same operations on the same numbers as on the gathered sums, four
-    (m, d) gathers fewer (the windows are nearly every position: 37 M a query on 1,000
-    primitives, a third of the grid's time). With ``scratch``, the moments are written
-    over the cumulative sums of x (no longer read once sx is formed) and their sum over
-    sx: no more memory than the fresh arrays took (at the largest scale, 3.5 M points on
-    1,000 primitives, the query's peak is the same)."""
-    n, d = cs.shape[0] - k, cs.shape[1]
-    sx = np.subtract(cs[k:], cs[:-k], out=_array(scratch, "tmp", (n, d)))
-    sp = np.subtract(cs2[k:], cs2[:-k], out=None if scratch is None else cs[:n])
-    sx *= sx
-    sx /= k
-    sp -= sx  # sxx − sx·sx / k, in place
-    if per_axis:
-        return sp[starts]
-    # the sum over the axes column by column: sum(axis=1)'s additions, in its order (a
-    # reduction over 2-3 numbers a row took 1.6x as long)
-    tot = np.add(sp[:, 0], sp[:, 1], out=_array(scratch, "tmp", (n,)))
-    for j in range(2, d):
-        tot += sp[:, j]
-    return tot[starts]
+    @property
+    def size(self) -> int:
+        return self.back + math.ceil(self.dur) + math.ceil(self.cell) + 3
 
 
 @dataclass
 class GridSearch:
-    """Exhaustive search on the documented (start, time scale) grid, vectorised."""
+    """Exhaustive search on the documented (start, time scale) grid, vectorised; windows
+    that a lower bound proves out are never resampled (:mod:`._grid_bound`)."""
 
     bank: BankIndex
     opts: SearchOptions
     stats: SearchStats = field(default_factory=SearchStats)
     name: ClassVar[str] = "grid"
+    span: ClassVar[float] = 0.34
+    chunk: ClassVar[int] = 1 << 14  # stretches scored at once, at most
     _table: np.ndarray | None = field(default=None, init=False, repr=False)
+    _extent: float | None = field(default=None, init=False, repr=False)
+    _steps: np.ndarray | None = field(default=None, init=False, repr=False)
+    _block_max: dict = field(default_factory=dict, init=False, repr=False)
 
-    def _windows(
-        self, path: PathPiece, a: float, b: float, scratch: _Scratch | None = None
-    ) -> Iterator[tuple]:
-        """Yield, per time scale, the resampled bank and its valid windows (the resampled
-        bank in ``scratch``'s memory when given: valid until the next scale)."""
+    def _scales(self, path: PathPiece, a: float, b: float) -> Iterator[_Scale]:
+        """Per time scale, the primitives that hold its duration and their windows (starts
+        m·h, m < n_start)."""
         bank, k = self.bank, self.opts.grid_points
         dq = (b - a) * path.duration / bank.dt
         counts = bank.counts
-        for scale in scale_grid(*self.opts.time_scale, self.opts.scale_ratio):
+        lo, hi = self.opts.time_scale
+        spread = math.sqrt(self.opts.scale_ratio) - 1.0 if hi > lo else 0.0
+        for scale in scale_grid(lo, hi, self.opts.scale_ratio):
             dur = scale * dq
             h = dur / (k - 1)
             ok = np.flatnonzero(counts - 1 >= dur - 1e-9)
             if ok.size == 0 or h <= 0:
                 continue
             n_start = np.floor((counts[ok] - 1 - dur) / h + 1e-9).astype(np.int64) + 1
-            n_res = n_start + k - 1
-            base = np.concatenate([[0], np.cumsum(n_res)])
-            prim = np.repeat(ok, n_res)
-            local = np.arange(base[-1]) - np.repeat(base[:-1], n_res)
-            res = self._resample(prim, local * h, scratch)
-            first = np.concatenate([[0], np.cumsum(n_start)])
-            s_local = np.arange(first[-1]) - np.repeat(first[:-1], n_start)
-            starts = np.repeat(base[:-1], n_start) + s_local
-            s_prim = np.repeat(ok, n_start)
-            yield res, starts, s_prim, s_local * h, dur
+            cell = dur / (k - 1) / 2.0 + dur * spread
+            yield _Scale(ok, n_start, dur, h, cell)
 
-    def _resample(
-        self, prim: np.ndarray, x: np.ndarray, scratch: _Scratch | None = None
-    ) -> np.ndarray:
+    def _resample(self, prim: np.ndarray, x: np.ndarray) -> np.ndarray:
         """:func:`._interp.cubic_at` of primitives ``prim`` at sample indices ``x``, from a
         table of every interval's Catmull-Rom coefficients (:func:`_coefficient_table`,
         built on the first call, kept): no neighbour gathers and no coefficient arithmetic
-        per point (each scale resamples the whole bank), the same numbers to the last bit."""
+        per point, the same numbers to the last bit."""
         if self._table is None:
             self._table = _coefficient_table(self.bank.points, self.bank.offsets)
         p1, c1, c2, c3 = self._table
@@ -219,42 +199,91 @@ class GridSearch:
         f = (x - i)[:, None]
         rows = self.bank.offsets[prim] + i
         # p1 + 0.5 f (c1 + f (c2 + f c3)), its operations in their order, in place, each
-        # coefficient gathered contiguous (one (m, 4, d) gather and arithmetic on its
-        # strided columns took 2.7x as long)
-        shape = (rows.size, p1.shape[1])
-        val = np.take(c3, rows, axis=0, out=_array(scratch, "res", shape), mode="clip")
-        tmp = _array(scratch, "tmp", shape)  # mode "clip": no buffer (rows are in range)
+        # coefficient gathered contiguous (mode "clip": no buffer; rows are in range)
+        val = np.take(c3, rows, axis=0, mode="clip")
         val *= f
-        val += np.take(c2, rows, axis=0, out=tmp, mode="clip")
+        val += np.take(c2, rows, axis=0, mode="clip")
         val *= f
-        val += np.take(c1, rows, axis=0, out=tmp, mode="clip")
+        val += np.take(c1, rows, axis=0, mode="clip")
         val *= 0.5 * f
-        val += np.take(p1, rows, axis=0, out=tmp, mode="clip")
+        val += np.take(p1, rows, axis=0, mode="clip")
         return val
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
         """Best distinct grid candidates that a continuous move within their cell could
-        bring below eps (Lipschitz gate, see :meth:`_slack`), best first."""
-        k, rotation = self.opts.grid_points, self.opts.rotation
+        bring below eps (Lipschitz gate, see :meth:`_slack`), best first: of each time
+        scale the ``8·seeds`` best windows below their gates (:meth:`_scale_seeds`), then
+        greedy suppression (:func:`._pool.suppress`)."""
+        k = self.opts.grid_points
         q = path.at(np.linspace(a, b, k))
-        qc = q - q.mean(axis=0)
-        sq = (qc * qc).sum(axis=0) if rotation == "z" else float((qc * qc).sum())
+        query = _Query.of(q, self.opts.rotation)
         pool: list[Candidate] = []
         self.stats.queries += 1
-        scratch = _Scratch()
-        for res, starts, s_prim, x0, dur in self._windows(path, a, b, scratch):
-            gate = eps + self._slack(s_prim, x0, dur, k)
-            rmsd = self._score(res, starts, q, qc, sq, k, rotation, gate, scratch)
-            self.stats.windows += starts.size
-            ok = np.flatnonzero(rmsd < gate)
-            top = ok[np.argsort(rmsd[ok])[: 8 * self.opts.seeds]]
+        slack = self._round_off(query)
+        for sc in self._scales(path, a, b):
+            self.stats.windows += int(sc.n_start.sum())
+            best = self._scale_seeds(sc, query, eps, slack)
             pool += [
-                Candidate(int(s_prim[t]), float(x0[t]), float(x0[t] + dur), float(rmsd[t]))
-                for t in top
+                Candidate(int(p), float(x), float(x + sc.dur), float(r))
+                for r, p, x in zip(best.rmsd, best.prim, best.x0, strict=True)
             ]
         return suppress(pool, self.opts.seeds)
 
-    def _slack(self, prim: np.ndarray, x0: np.ndarray, dur: float, k: int) -> np.ndarray:
+    def _scale_seeds(self, sc: _Scale, query: _Query, eps: float, slack: float) -> Best:
+        """The scale's best windows below their gates, stretches of windows best-first by
+        their lower bound (:meth:`_stretches`) until the next one's bound passes the
+        ``top``-th best RMSD found (:class:`._grid_bound.Best`) or its stretch's gate."""
+        best = Best(8 * self.opts.seeds)
+        prim, first, lb, gate = self._stretches(sc, query, eps)
+        left = np.flatnonzero(~beyond(lb, gate, query.rg, slack))
+        size = 64
+        while left.size:
+            left = left[~beyond(lb[left], best.limit(), query.rg, slack)]
+            if left.size > size:  # the smallest bounds first: the limit falls fastest
+                at = np.argpartition(lb[left], size - 1)[:size]
+                part, left = left[at], np.delete(left, at)
+            else:
+                part, left = left, left[:0]
+            if part.size:
+                self._score(sc, query, eps, (prim[part], first[part], gate[part]), best, slack)
+            size = min(4 * size, self.chunk)
+        return best
+
+    def _round_off(self, query: _Query) -> float:
+        """Absolute round-off of the endpoint bound in ρ: the chords' points carry ~u of
+        the coordinates' magnitude each (256 u, generously), over √(2K)."""
+        if self._extent is None:
+            pts = self.bank.points
+            self._extent = float(np.abs(pts).max()) if pts.size else 0.0
+        big = self._extent + query.extent
+        return 256.0 * np.finfo(float).eps * big / math.sqrt(2.0 * self.opts.grid_points)
+
+    def _stretches(self, sc: _Scale, query: _Query, eps: float) -> tuple:
+        """Stretches of s consecutive windows of each primitive (s = :func:`stretch_length`):
+        primitive, first window, the lower bound on ρ of its windows and a gate at or above
+        theirs. P is resampled at every s-th grid point only (:func:`anchor_values`)."""
+        k, h = self.opts.grid_points, sc.h
+        s = stretch_length(k, h, self.span * sc.dur)
+        lag = (k - 1) // s
+        n_stretch = -(-sc.n_start // s)
+        n_anchor = n_stretch + 1 + lag
+        base = np.concatenate([[0], np.cumsum(n_anchor)])
+        local = np.arange(base[-1]) - np.repeat(base[:-1], n_anchor)
+        anchors = self._resample(np.repeat(sc.prim, n_anchor), local * s * h)
+        values = anchor_values(anchors, n_anchor, lag, query.chord, self.opts.rotation)
+        prim = np.repeat(sc.prim, n_stretch)
+        first = (
+            np.arange(n_stretch.sum()) - np.repeat(np.cumsum(n_stretch) - n_stretch, n_stretch)
+        ) * s
+        # the largest step over every stencil the stretch's starts and ends cross, and
+        # every gate's (the local steps of its starts [a, a + ⌈s·h⌉])
+        at = self.bank.offsets[prim] + np.floor(first * h).astype(np.int64)
+        top = self._stretch_steps(sc, at, math.ceil(s * h))
+        lb = stretch_bounds(values, n_stretch, top * (s * h))
+        gate = eps + 1.25 * top * sc.cell
+        return prim, first, lb / math.sqrt(2.0 * k), gate
+
+    def _slack(self, prim: np.ndarray, x0: np.ndarray, sc: _Scale) -> np.ndarray:
         """Bound on how much the RMSD can drop inside a grid cell.
 
         Moving the start by up to h/2 and the duration to a neighbouring scale (factor
@@ -269,40 +298,86 @@ class GridSearch:
         index, on 1,000 primitives: 32.8 M of 37 M windows scored, 42 s). A fixed time scale
         (one duration) has no neighbouring scale: only the start moves.
         """
-        lo, hi = self.opts.time_scale
-        spread = math.sqrt(self.opts.scale_ratio) - 1.0 if hi > lo else 0.0
-        cell = dur / (k - 1) / 2.0 + dur * spread
         at = self.bank.offsets[prim] + np.floor(x0).astype(np.int64)
-        return 1.25 * self._local_steps(dur, cell)[at] * cell
+        return 1.25 * self._local_steps(sc, at) * sc.cell
 
-    def _local_steps(self, dur: float, cell: float) -> np.ndarray:
-        """Per stored sample j, the largest step between consecutive samples of its
-        primitive over [j − ⌈c⌉ − 1, j + ⌈D⌉ + ⌈c⌉ + 2] (c = ``cell``): every sample a grid
-        point of a window starting in [j, j + 1) reaches, moved within its cell, with the
-        cubic's stencil (:meth:`BankIndex.steps`: the steps across primitives count 0)."""
-        back = math.ceil(cell) + 1
-        size = back + math.ceil(dur) + math.ceil(cell) + 3
-        # the window [j − back, j − back + size − 1]: origin back − size // 2
-        steps = self.bank.steps()
-        return maximum_filter1d(steps, size=size, origin=back - size // 2, mode="constant")
+    def _local_steps(self, sc: _Scale, at: np.ndarray) -> np.ndarray:
+        """Per stored sample j in ``at``, the largest step between consecutive samples of
+        its primitive over [j − ⌈c⌉ − 1, j + ⌈D⌉ + ⌈c⌉ + 2] (c = ``cell``): every sample a
+        grid point of a window starting in [j, j + 1) reaches, moved within its cell, with
+        the cubic's stencil (:meth:`BankIndex.steps`: the steps across primitives count 0;
+        none beyond the bank's ends). Gathered: only the windows scored need it."""
+        padded = self._padded_steps()
+        span = at[..., None] - sc.back + np.arange(1, sc.size + 1)
+        return np.take(padded, span, mode="clip").max(axis=-1)
 
-    def _score(self, res, starts, q, qc, sq, k, rotation, gate, scratch=None) -> np.ndarray:
-        """RMSD of every window that can pass ``gate``; +inf for the others, which the
-        radius-of-gyration bound |g(P) − g(Q)| ≤ rmsd proves to be at or above it. ``res``
-        is centred in place."""
-        # centre per window via cumulative sums; the cross term needs no centring (Σ q̃ = 0)
-        res -= _column_means(res, scratch)
-        res_c = res
-        cs, cs2 = _cumsums(res_c, scratch)
-        per_axis = rotation == "z"
-        sp = _window_moments(cs, cs2, starts, k, per_axis, scratch)
-        tot = sp.sum(axis=1) if per_axis else sp
-        live = np.flatnonzero(gyration_bound(tot, float(np.sum(sq)), k) < gate)
-        out = np.full(starts.size, np.inf)
+    def _stretch_steps(self, sc: _Scale, at: np.ndarray, extra: int) -> np.ndarray:
+        """At or above :meth:`_local_steps` of every j in [a, a + extra] for each a in
+        ``at``: the largest step over [a − back, a − back + size + extra), taken on maxima
+        of blocks of B steps (B a power of 2 near 1/8 of that: one filter over N/B block
+        maxima, kept per B)."""
+        reach = sc.size + extra
+        width = 1 << max(0, (reach // 8).bit_length() - 1)
+        blocks = self._blocks(width)
+        nb = (reach - 1) // width + 2  # blocks that any `reach` consecutive steps touch
+        wide = maximum_filter1d(blocks, size=nb, origin=-(nb // 2), mode="constant")
+        return wide[np.clip((at - sc.back) // width, 0, blocks.size - 1)]
+
+    def _blocks(self, width: int) -> np.ndarray:
+        """Maxima of the steps over blocks [i·width, (i + 1)·width), width a power of 2
+        (each from the one of half its width), kept."""
+        if width not in self._block_max:
+            if width == 1:
+                self._block_max[1] = speed_bounds(self.bank.points, self.bank.offsets)
+            else:
+                half = self._blocks(width // 2)
+                pairs = np.zeros(half.size + half.size % 2)
+                pairs[: half.size] = half
+                self._block_max[width] = pairs.reshape(-1, 2).max(axis=1)
+        return self._block_max[width]
+
+    def _padded_steps(self) -> np.ndarray:
+        """:meth:`BankIndex.steps` with a 0 either side (gathers clipped to them read 0)."""
+        if self._steps is None:
+            self._steps = np.concatenate([[0.0], self.bank.steps(), [0.0]])
+        return self._steps
+
+    def _score(self, sc: _Scale, query: _Query, eps: float, part: tuple, best: Best,
+               slack: float) -> None:  # fmt: skip
+        """Resample the windows of the stretches ``part`` (primitive, first window, a gate
+        at or above their windows'), drop those whose own endpoint bound or
+        radius-of-gyration bound (:func:`primlib.match._bounds.gyration_bound`) is beyond
+        that gate or ``best``'s limit, score the others (``rmsd_from_moments``, each window
+        centred on its own mean) and offer those below their own gates to ``best``."""
+        prim, first, top = part
+        k, h, rotation = self.opts.grid_points, sc.h, self.opts.rotation
+        s = stretch_length(k, h, self.span * sc.dur)
+        npts, d = s + k - 1, self.bank.points.shape[1]
+        res = self._resample(
+            np.repeat(prim, npts), ((first[:, None] + np.arange(npts)) * h).ravel()
+        )
+        res = res.reshape(first.size, npts, d)
+        m = first[:, None] + np.arange(s)
+        n_of = np.zeros(self.bank.k, dtype=np.int64)
+        n_of[sc.prim] = sc.n_start
+        x0 = m * h
+        limit = np.broadcast_to(np.minimum(top, best.limit())[:, None], m.shape)
+        gap = endpoint_gap((res[:, k - 1 :] - res[:, :s]).reshape(-1, d), query.chord, rotation)
+        gap = gap.reshape(m.shape) / math.sqrt(2.0 * k)
+        bi, ti = np.nonzero((m < n_of[prim][:, None]) & ~beyond(gap, limit, query.rg, slack))
+        win = sliding_window_view(res, k, axis=1)[bi, ti]  # (m, d, k)
+        win = win - win.mean(axis=2, keepdims=True)
+        sp = np.einsum("mdk,mdk->md", win, win)
+        tot = sp.sum(axis=1)
+        gyr = gyration_bound(tot, float(np.sum(query.sq)), k)
+        live = np.flatnonzero(~beyond(gyr, limit[bi, ti], query.rg, 0.0))
         self.stats.scored += live.size
-        if live.size:
-            win = sliding_window_view(res_c, k, axis=0)[starts[live]]  # (m, d, k), contiguous
-            s = win @ qc  # one (m·d, k) by (k, d) product: no copy, unlike einsum's reshape
-            sp_l = sp[live]
-            out[live] = rmsd_from_moments(s, sp_l, np.broadcast_to(sq, sp_l.shape), k, rotation)
-        return out
+        if live.size == 0:
+            return
+        bi, ti, win = bi[live], ti[live], win[live]
+        sp = sp[live] if rotation == "z" else tot[live]
+        s_q = win @ query.qc  # one (m·d, k) by (k, d) product
+        rmsd = rmsd_from_moments(s_q, sp, np.broadcast_to(query.sq, sp.shape), k, rotation)
+        prim, x0 = prim[bi], x0[bi, ti]
+        ok = np.flatnonzero(rmsd < eps + self._slack(prim, x0, sc))
+        best.add(rmsd[ok], prim[ok], x0[ok])

@@ -1,0 +1,188 @@
+"""The grid's bounds that drop windows before they are resampled (``_grid_bound``): each is
+below what it bounds, and the pruned grid returns the seeds of every window scored."""
+
+import math
+
+import numpy as np
+import pytest
+from _reference_search import every_window_seeds
+
+from primlib.match import BankIndex, kabsch
+from primlib.match._grid import GridSearch, _Query
+from primlib.match._grid_bound import Best, beyond, endpoint_gap, speed_bounds
+from primlib.match._interp import cubic_at
+from primlib.match._kabsch import rmsd_from_moments
+from primlib.match._options import PathPiece, SearchOptions
+from primlib.store import Bank
+
+DT = 0.01
+K = 16
+
+
+def _rotation(rng, rotation: str) -> np.ndarray:
+    if rotation == "none":
+        return np.eye(3)
+    if rotation == "z":
+        t = rng.uniform(0, 2 * np.pi)
+        return np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1]])
+    r = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    return r * np.sign(np.linalg.det(r))
+
+
+def _walk(rng, n: int, speed: float, dwell: bool = False) -> np.ndarray:
+    """A smooth random 3-D curve of n samples moving ~``speed`` a sample (a stop in the
+    middle with ``dwell``)."""
+    v = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    width = min(15, n)
+    v = np.apply_along_axis(lambda c: np.convolve(c, np.ones(width) / width, "same"), 0, v)
+    v /= np.linalg.norm(v, axis=1, keepdims=True) + 1e-12
+    pace = np.full((n, 1), speed)
+    if dwell:
+        pace[n // 3 : n // 2] = 0.0
+    return np.cumsum(v * pace, axis=0) + rng.normal(size=3) * 50.0
+
+
+def _bank(rng, k: int = 6, n: int = 300, still: bool = True) -> BankIndex:
+    """Smooth primitives; with ``still``, some stop a while, one never moves."""
+    prims = [_walk(rng, n, rng.uniform(0.02, 0.3), dwell=still and i % 3 == 0) for i in range(k)]
+    if still:
+        prims.append(rng.normal(size=3) + np.zeros((40, 3)))
+    prims.append(_walk(rng, 3, 0.1))  # and one of 3 samples
+    return BankIndex(Bank.from_samples(prims, DT))
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+def test_the_endpoint_bound_is_below_the_rmsd(rotation):
+    # K ρ² >= |e_1|² + |e_K|² >= |R c_w − c_q|²/2 >= g(c_w)²/2 for every motion
+    rng = np.random.default_rng(1)
+    q = _walk(rng, K, 0.1)
+    near = q @ _rotation(rng, rotation).T + rng.normal(size=(400, K, 3)) * 0.01
+    far = rng.normal(size=(400, K, 3)) * rng.uniform(0.001, 3.0, (400, 1, 1))
+    for w in (near, far, np.repeat(q[None], 3, axis=0)):
+        rmsd = kabsch(w, np.broadcast_to(q, w.shape), rotation=rotation).rmsd
+        gap = endpoint_gap(w[:, -1] - w[:, 0], q[-1] - q[0], rotation) / math.sqrt(2 * K)
+        assert np.all(gap <= rmsd + 1e-12)
+    # g is the least |R c − c_q| of the family: a rotation of c_q's own chord reaches 0
+    c = q[-1] - q[0]
+    np.testing.assert_allclose(endpoint_gap((c @ _rotation(rng, rotation).T)[None], c, rotation),
+                               0.0, atol=1e-12)  # fmt: skip
+
+
+def test_the_speed_bound_is_above_the_interpolants_speed():
+    # |P'| <= |d_i| + max(|d_{i−1} − d_i|, |d_{i+1} − d_i|)/2 on the interval i, ends clamped
+    rng = np.random.default_rng(2)
+    prims = [rng.normal(size=(n, 3)) * s for n, s in ((2, 1.0), (3, 5.0), (50, 0.1), (60, 3.0))]
+    prims.append(_walk(rng, 80, 0.2))
+    bank = BankIndex(Bank.from_samples(prims, DT))
+    speed = speed_bounds(bank.points, bank.offsets)
+    for p in range(bank.k):
+        count = int(bank.counts[p])
+        x = np.linspace(0.0, count - 1, 4001)
+        _, dx = cubic_at(bank.points, bank.offsets[p], count, x, derivative=True)
+        interval = np.minimum(np.floor(x).astype(int), count - 2)
+        bound = speed[bank.offsets[p] + interval]
+        assert np.all(np.linalg.norm(dx, axis=1) <= bound * (1 + 1e-12) + 1e-15)
+
+
+def _query(bank: BankIndex, rng, kind: str, rotation: str) -> tuple[PathPiece, float]:
+    """A path piece and eps: a noisy, rotated, time-scaled copy of a stored stretch, a
+    stationary piece, a piece of 3 samples, or a slow piece against faster primitives."""
+    if kind == "stationary":
+        pts = np.zeros((30, 3)) + rng.normal(size=3) + rng.normal(size=(30, 3)) * 1e-9
+        return PathPiece(pts, 29 * DT), 1e-3
+    if kind == "slow":
+        return PathPiece(_walk(rng, 34, 0.004), 33 * DT), 0.002
+    p = int(rng.integers(0, bank.k - 2))
+    s0 = int(rng.integers(0, bank.counts[p] - 70))
+    n = 3 if kind == "tiny" else int(rng.integers(20, 60))
+    x = np.linspace(s0, s0 + rng.uniform(0.6, 1.6) * (n - 1), n)
+    pts = cubic_at(bank.points, bank.offsets[p], bank.counts[p], x)
+    pts = pts @ _rotation(rng, rotation).T + rng.normal(size=pts.shape) * 1e-3
+    return PathPiece(pts, (n - 1) * DT), 0.02
+
+
+def _every_window(rotation: str):
+    """The pruned grid's scoring, on every window: each centred on its own mean, its RMSD
+    from its moments (ties, as a slow piece against stopped primitives, rank alike)."""
+
+    def score(pts: np.ndarray, q: np.ndarray) -> np.ndarray:
+        w = pts.transpose(0, 2, 1)
+        w = w - w.mean(axis=2, keepdims=True)
+        qc = q - q.mean(axis=0)
+        sp, sq = np.einsum("mdk,mdk->md", w, w), (qc * qc).sum(axis=0)
+        if rotation != "z":
+            sp, sq = sp.sum(axis=1), sq.sum()
+        return rmsd_from_moments(w @ qc, sp, np.broadcast_to(sq, sp.shape), K, rotation)
+
+    return score
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+@pytest.mark.parametrize("kind", ["copy", "stationary", "tiny", "slow"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_pruned_grid_returns_the_seeds_of_every_window_scored(rotation, kind, seed):
+    # no window that could be a seed is dropped: the same windows as scoring every one,
+    # their RMSDs those of one Kabsch call per window to round-off
+    rng = np.random.default_rng(100 * seed + len(kind))
+    bank = _bank(rng, still=kind != "slow")
+    path, eps = _query(bank, rng, kind, rotation)
+    a, b = (0.0, 1.0) if seed != 2 else (0.25, 0.75)
+    opts = SearchOptions(rotation=rotation, time_scale=(0.5, 2.0) if seed else (1.0, 1.0))
+    pruned = GridSearch(bank, opts)
+    got = pruned.seeds(path, a, b, eps)
+    every = GridSearch(bank, opts)
+    want = every_window_seeds(every, path, a, b, eps, _every_window(rotation))
+    assert [(c.prim, c.x0, c.x1) for c in got] == [(c.prim, c.x0, c.x1) for c in want]
+    np.testing.assert_allclose([c.score for c in got], [c.score for c in want], rtol=1e-12,
+                               atol=1e-15)  # fmt: skip
+    q = path.at(np.linspace(a, b, K))
+    for c in got:
+        pts = cubic_at(bank.points, bank.offsets[c.prim], bank.counts[c.prim],
+                       np.linspace(c.x0, c.x1, K))  # fmt: skip
+        assert c.score == pytest.approx(kabsch(pts, q, rotation=rotation).rmsd, abs=1e-9)
+    assert pruned.stats.windows == every.stats.windows
+    assert pruned.stats.scored <= every.stats.scored
+    if kind == "slow":  # a slow piece against fast primitives: nearly every window out
+        assert pruned.stats.scored < 0.05 * every.stats.scored
+
+
+def test_a_stretch_bound_is_below_every_window_of_its_stretch_and_its_gate_above():
+    rng = np.random.default_rng(7)
+    bank = _bank(rng, k=5, n=400)
+    path, eps = _query(bank, rng, "copy", "full")
+    for rotation in ("full", "z", "none"):
+        grid = GridSearch(bank, SearchOptions(rotation=rotation))
+        q = path.at(np.linspace(0.0, 1.0, K))
+        query = _Query.of(q, rotation)
+        for sc in grid._scales(path, 0.0, 1.0):
+            prim, first, lb, gate = grid._stretches(sc, query, eps)
+            n = np.zeros(bank.k, dtype=np.int64)
+            n[sc.prim] = sc.n_start
+            s = int(np.diff(first[:2])[0]) if first.size > 1 and prim[0] == prim[1] else 1
+            m = first[:, None] + np.arange(s)
+            ok = m < n[prim][:, None]
+            mm, pp = m[ok], np.broadcast_to(prim[:, None], m.shape)[ok]
+            ends = cubic_at(bank.points, bank.offsets[pp], bank.counts[pp], (mm + K - 1) * sc.h)
+            starts = cubic_at(bank.points, bank.offsets[pp], bank.counts[pp], mm * sc.h)
+            gap = endpoint_gap(ends - starts, q[-1] - q[0], rotation) / math.sqrt(2 * K)
+            assert np.all(gap >= np.broadcast_to(lb[:, None], m.shape)[ok] - 1e-12)
+            slack = grid._slack(pp, mm * sc.h, sc)
+            assert np.all(eps + slack <= np.broadcast_to(gate[:, None], m.shape)[ok])
+
+
+def test_best_keeps_the_best_windows_by_rmsd_then_window():
+    best = Best(3)
+    assert best.limit() == math.inf
+    best.add(np.array([0.3, 0.1, 0.2]), np.array([5, 1, 2]), np.array([0.0, 4.0, 1.0]))
+    best.add(np.array([0.1, 0.2, 0.05]), np.array([0, 2, 9]), np.array([9.0, 0.5, 3.0]))
+    assert best.rmsd.tolist() == [0.05, 0.1, 0.1]
+    assert best.prim.tolist() == [9, 0, 1] and best.limit() == 0.1
+
+
+def test_a_bound_is_beyond_a_limit_only_past_the_round_off_margin():
+    # at the limit (and within ~1e-9 relative) a window is kept: its RMSD may round below
+    assert not beyond(np.array([0.1]), 0.1, 1.0, 0.0)[0]
+    assert not beyond(np.array([0.1 + 1e-12]), 0.1, 1.0, 0.0)[0]
+    assert beyond(np.array([0.1001]), 0.1, 1.0, 0.0)[0]
+    assert not beyond(np.array([0.1001]), 0.1, 1.0, 1e-3)[0]  # within the chords' slack
+    assert beyond(np.array([1.0]), math.inf, 1.0, 0.0).tolist() == [False]
