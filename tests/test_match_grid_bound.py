@@ -119,8 +119,8 @@ def _every_window(rotation: str):
 
 @pytest.mark.parametrize("rotation", ["full", "z", "none"])
 @pytest.mark.parametrize("kind", ["copy", "stationary", "tiny", "slow"])
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_the_pruned_grid_returns_the_seeds_of_every_window_scored(rotation, kind, seed):
+@pytest.mark.parametrize(("seed", "few"), [(0, 0), (1, 0), (2, 0), (0, None), (1, None)])
+def test_the_pruned_grid_returns_the_seeds_of_every_window_scored(rotation, kind, seed, few):
     # no window that could be a seed is dropped: the same windows as scoring every one,
     # their RMSDs those of one Kabsch call per window to round-off
     rng = np.random.default_rng(100 * seed + len(kind))
@@ -129,12 +129,16 @@ def test_the_pruned_grid_returns_the_seeds_of_every_window_scored(rotation, kind
     a, b = (0.0, 1.0) if seed != 2 else (0.25, 0.75)
     opts = SearchOptions(rotation=rotation, time_scale=(0.5, 2.0) if seed else (1.0, 1.0))
     pruned = GridSearch(bank, opts)
+    if few is not None:  # stretches of s > 1 windows at every scale (s = 1 on small ones)
+        pruned.few = few
     got = pruned.seeds(path, a, b, eps)
     every = GridSearch(bank, opts)
     want = every_window_seeds(every, path, a, b, eps, _every_window(rotation))
     assert [(c.prim, c.x0, c.x1) for c in got] == [(c.prim, c.x0, c.x1) for c in want]
-    np.testing.assert_allclose([c.score for c in got], [c.score for c in want], rtol=1e-12,
-                               atol=1e-15)  # fmt: skip
+    # ρ from moments loses ~u·(Σ|p̃|² + Σ|q̃|²)/(2Kρ) to cancellation, its eigenvalue route
+    # depending on the batch it is in: ~1e-14 here
+    np.testing.assert_allclose([c.score for c in got], [c.score for c in want], rtol=1e-9,
+                               atol=1e-12)  # fmt: skip
     q = path.at(np.linspace(a, b, K))
     for c in got:
         pts = cubic_at(bank.points, bank.offsets[c.prim], bank.counts[c.prim],
@@ -155,19 +159,25 @@ def test_a_stretch_bound_is_below_every_window_of_its_stretch_and_its_gate_above
         q = path.at(np.linspace(0.0, 1.0, K))
         query = _Query.of(q, rotation)
         for sc in grid._scales(path, 0.0, 1.0):
-            prim, first, lb, gate = grid._stretches(sc, query, eps)
-            n = np.zeros(bank.k, dtype=np.int64)
-            n[sc.prim] = sc.n_start
-            s = int(np.diff(first[:2])[0]) if first.size > 1 and prim[0] == prim[1] else 1
-            m = first[:, None] + np.arange(s)
-            ok = m < n[prim][:, None]
-            mm, pp = m[ok], np.broadcast_to(prim[:, None], m.shape)[ok]
-            ends = cubic_at(bank.points, bank.offsets[pp], bank.counts[pp], (mm + K - 1) * sc.h)
-            starts = cubic_at(bank.points, bank.offsets[pp], bank.counts[pp], mm * sc.h)
-            gap = endpoint_gap(ends - starts, q[-1] - q[0], rotation) / math.sqrt(2 * K)
-            assert np.all(gap >= np.broadcast_to(lb[:, None], m.shape)[ok] - 1e-12)
-            slack = grid._slack(pp, mm * sc.h, sc)
-            assert np.all(eps + slack <= np.broadcast_to(gate[:, None], m.shape)[ok])
+            for few in (0, grid.few):
+                grid.few = few
+                _check_stretches(grid, grid._stretches(sc, query, eps), sc, q, eps)
+
+
+def _check_stretches(grid: GridSearch, st, sc, q: np.ndarray, eps: float) -> None:
+    """Every window of every stretch: its endpoint bound at or above the stretch's, its
+    gate at or below the stretch's."""
+    bank, rotation = grid.bank, grid.opts.rotation
+    m = st.first[:, None] + np.arange(st.s)
+    ok = np.arange(st.s) < st.count[:, None]
+    mm, pp = m[ok], np.broadcast_to(st.prim[:, None], m.shape)[ok]
+    assert mm.size == sc.n_start.sum()  # each window in one stretch
+    ends = cubic_at(bank.points, bank.offsets[pp], bank.counts[pp], (mm + K - 1) * sc.h)
+    starts = cubic_at(bank.points, bank.offsets[pp], bank.counts[pp], mm * sc.h)
+    gap = endpoint_gap(ends - starts, q[-1] - q[0], rotation) / math.sqrt(2 * K)
+    assert np.all(gap >= np.broadcast_to(st.bound[:, None], m.shape)[ok] - 1e-12)
+    slack = grid._slack(pp, mm * sc.h, sc)
+    assert np.all(eps + slack <= np.broadcast_to(st.gate[:, None], m.shape)[ok])
 
 
 def test_best_keeps_the_best_windows_by_rmsd_then_window():

@@ -151,6 +151,23 @@ class _Scale:
         return self.back + math.ceil(self.dur) + math.ceil(self.cell) + 3
 
 
+@dataclass(frozen=True)
+class _Stretches:
+    """One scale's stretches of s consecutive windows (primitive by primitive): primitive,
+    first window, windows in it (``count``), the lower bound on ρ of its windows, a gate at
+    or above theirs; the anchors (P at every s-th grid point) and, per stretch, the anchor
+    row of its first window."""
+
+    s: int
+    prim: np.ndarray
+    first: np.ndarray
+    count: np.ndarray
+    bound: np.ndarray
+    gate: np.ndarray
+    anchors: np.ndarray
+    rows: np.ndarray
+
+
 @dataclass
 class GridSearch:
     """Exhaustive search on the documented (start, time scale) grid, vectorised; windows
@@ -162,6 +179,7 @@ class GridSearch:
     name: ClassVar[str] = "grid"
     span: ClassVar[float] = 0.34
     chunk: ClassVar[int] = 1 << 14  # stretches scored at once, at most
+    few: ClassVar[int] = 1 << 16  # windows of a scale below which s = 1 (each its own)
     _table: np.ndarray | None = field(default=None, init=False, repr=False)
     _extent: float | None = field(default=None, init=False, repr=False)
     _steps: np.ndarray | None = field(default=None, init=False, repr=False)
@@ -234,20 +252,37 @@ class GridSearch:
         their lower bound (:meth:`_stretches`) until the next one's bound passes the
         ``top``-th best RMSD found (:class:`._grid_bound.Best`) or its stretch's gate."""
         best = Best(8 * self.opts.seeds)
-        prim, first, lb, gate = self._stretches(sc, query, eps)
-        left = np.flatnonzero(~beyond(lb, gate, query.rg, slack))
-        size = 64
+        st = self._stretches(sc, query, eps)
+        left = np.flatnonzero(~beyond(st.bound, st.gate, query.rg, slack))
+        size = 64 if st.s > 1 else 256  # few windows: most in the first batch
         while left.size:
-            left = left[~beyond(lb[left], best.limit(), query.rg, slack)]
+            left = left[~beyond(st.bound[left], best.limit(), query.rg, slack)]
             if left.size > size:  # the smallest bounds first: the limit falls fastest
-                at = np.argpartition(lb[left], size - 1)[:size]
+                at = np.argpartition(st.bound[left], size - 1)[:size]
                 part, left = left[at], np.delete(left, at)
             else:
                 part, left = left, left[:0]
             if part.size:
-                self._score(sc, query, eps, (prim[part], first[part], gate[part]), best, slack)
-            size = min(4 * size, self.chunk)
+                res, rows, which, m = self._points(sc, st, part)
+                limit = np.minimum(st.gate[which], best.limit())
+                windows = (res, rows, st.prim[which], m, limit, st.s == 1)
+                self._score(sc, query, eps, windows, best, slack)
+            size = min(4 * size, self.chunk) if st.s > 1 else left.size  # few: the rest at once
         return best
+
+    def _points(self, sc: _Scale, st: _Stretches, part: np.ndarray) -> tuple:
+        """The resampled points of the windows of stretches ``part``: an (M, d) array, the
+        row of each window's first point (its K points are the next K rows), the stretch
+        and the index m of each window. With s = 1 the anchors are every grid point."""
+        k, s = self.opts.grid_points, st.s
+        if s == 1:
+            return st.anchors, st.rows[part], part, st.first[part]
+        npts = s + k - 1
+        first = st.first[part]
+        x = ((first[:, None] + np.arange(npts)) * sc.h).ravel()
+        res = self._resample(np.repeat(st.prim[part], npts), x)
+        b, t = np.nonzero(np.arange(s) < st.count[part][:, None])
+        return res, b * npts + t, part[b], first[b] + t
 
     def _round_off(self, query: _Query) -> float:
         """Absolute round-off of the endpoint bound in ρ: the chords' points carry ~u of
@@ -258,12 +293,14 @@ class GridSearch:
         big = self._extent + query.extent
         return 256.0 * np.finfo(float).eps * big / math.sqrt(2.0 * self.opts.grid_points)
 
-    def _stretches(self, sc: _Scale, query: _Query, eps: float) -> tuple:
-        """Stretches of s consecutive windows of each primitive (s = :func:`stretch_length`):
-        primitive, first window, the lower bound on ρ of its windows and a gate at or above
-        theirs. P is resampled at every s-th grid point only (:func:`anchor_values`)."""
+    def _stretches(self, sc: _Scale, query: _Query, eps: float) -> _Stretches:
+        """Stretches of s consecutive windows of each primitive (s = :func:`stretch_length`,
+        1 on a scale of few windows): the lower bound on ρ of their windows and a gate at
+        or above theirs. P is resampled at every s-th grid point only
+        (:func:`anchor_values`)."""
         k, h = self.opts.grid_points, sc.h
-        s = stretch_length(k, h, self.span * sc.dur)
+        few = int(sc.n_start.sum()) <= self.few
+        s = 1 if few else stretch_length(k, h, self.span * sc.dur)
         lag = (k - 1) // s
         n_stretch = -(-sc.n_start // s)
         n_anchor = n_stretch + 1 + lag
@@ -272,16 +309,17 @@ class GridSearch:
         anchors = self._resample(np.repeat(sc.prim, n_anchor), local * s * h)
         values = anchor_values(anchors, n_anchor, lag, query.chord, self.opts.rotation)
         prim = np.repeat(sc.prim, n_stretch)
-        first = (
-            np.arange(n_stretch.sum()) - np.repeat(np.cumsum(n_stretch) - n_stretch, n_stretch)
-        ) * s
-        # the largest step over every stencil the stretch's starts and ends cross, and
-        # every gate's (the local steps of its starts [a, a + ⌈s·h⌉])
+        first = np.arange(n_stretch.sum()) - np.repeat(np.cumsum(n_stretch) - n_stretch, n_stretch)
+        rows = first + np.repeat(base[:-1], n_stretch)  # s = 1: a window's first anchor
+        first *= s
+        # the largest speed bound over the intervals the stretch's starts and ends cross,
+        # and every gate's local steps (of its starts [a, a + ⌈s·h⌉])
         at = self.bank.offsets[prim] + np.floor(first * h).astype(np.int64)
         top = self._stretch_steps(sc, at, math.ceil(s * h))
-        lb = stretch_bounds(values, n_stretch, top * (s * h))
+        lb = stretch_bounds(values, n_stretch, top * (s * h), s)
         gate = eps + 1.25 * top * sc.cell
-        return prim, first, lb / math.sqrt(2.0 * k), gate
+        count = np.minimum(np.repeat(sc.n_start, n_stretch) - first, s)
+        return _Stretches(s, prim, first, count, lb / math.sqrt(2.0 * k), gate, anchors, rows)
 
     def _slack(self, prim: np.ndarray, x0: np.ndarray, sc: _Scale) -> np.ndarray:
         """Bound on how much the RMSD can drop inside a grid cell.
@@ -344,40 +382,31 @@ class GridSearch:
 
     def _score(self, sc: _Scale, query: _Query, eps: float, part: tuple, best: Best,
                slack: float) -> None:  # fmt: skip
-        """Resample the windows of the stretches ``part`` (primitive, first window, a gate
-        at or above their windows'), drop those whose own endpoint bound or
-        radius-of-gyration bound (:func:`primlib.match._bounds.gyration_bound`) is beyond
-        that gate or ``best``'s limit, score the others (``rmsd_from_moments``, each window
-        centred on its own mean) and offer those below their own gates to ``best``."""
-        prim, first, top = part
-        k, h, rotation = self.opts.grid_points, sc.h, self.opts.rotation
-        s = stretch_length(k, h, self.span * sc.dur)
-        npts, d = s + k - 1, self.bank.points.shape[1]
-        res = self._resample(
-            np.repeat(prim, npts), ((first[:, None] + np.arange(npts)) * h).ravel()
-        )
-        res = res.reshape(first.size, npts, d)
-        m = first[:, None] + np.arange(s)
-        n_of = np.zeros(self.bank.k, dtype=np.int64)
-        n_of[sc.prim] = sc.n_start
-        x0 = m * h
-        limit = np.broadcast_to(np.minimum(top, best.limit())[:, None], m.shape)
-        gap = endpoint_gap((res[:, k - 1 :] - res[:, :s]).reshape(-1, d), query.chord, rotation)
-        gap = gap.reshape(m.shape) / math.sqrt(2.0 * k)
-        bi, ti = np.nonzero((m < n_of[prim][:, None]) & ~beyond(gap, limit, query.rg, slack))
-        win = sliding_window_view(res, k, axis=1)[bi, ti]  # (m, d, k)
+        """Of the windows ``part`` (resampled points (M, d), each window's first row, its
+        primitive, index m, a limit at or above its gate, and whether the limit was put to
+        its own endpoint bound already), drop those whose own endpoint bound or
+        radius-of-gyration bound
+        (:func:`primlib.match._bounds.gyration_bound`) is beyond the limit, score the others
+        (``rmsd_from_moments``, each window centred on its own mean) and offer those below
+        their gates to ``best``."""
+        res, rows, prim, m, limit, bounded = part
+        k, rotation = self.opts.grid_points, self.opts.rotation
+        if not bounded:  # (s = 1: the stretch bound was the window's own)
+            gap = endpoint_gap(res[rows + k - 1] - res[rows], query.chord, rotation)
+            keep = np.flatnonzero(~beyond(gap / math.sqrt(2.0 * k), limit, query.rg, slack))
+            rows, prim, m, limit = rows[keep], prim[keep], m[keep], limit[keep]
+        win = sliding_window_view(res, k, axis=0)[rows]  # (m, d, k)
         win = win - win.mean(axis=2, keepdims=True)
-        sp = np.einsum("mdk,mdk->md", win, win)
-        tot = sp.sum(axis=1)
+        sp = np.einsum("mdk,mdk->md" if rotation == "z" else "mdk,mdk->m", win, win)
+        tot = sp.sum(axis=1) if rotation == "z" else sp
         gyr = gyration_bound(tot, float(np.sum(query.sq)), k)
-        live = np.flatnonzero(~beyond(gyr, limit[bi, ti], query.rg, 0.0))
+        live = np.flatnonzero(~beyond(gyr, limit, query.rg, 0.0))
         self.stats.scored += live.size
         if live.size == 0:
             return
-        bi, ti, win = bi[live], ti[live], win[live]
-        sp = sp[live] if rotation == "z" else tot[live]
+        win, prim, x0 = win[live], prim[live], m[live] * sc.h
+        sp = sp[live]
         s_q = win @ query.qc  # one (m·d, k) by (k, d) product
         rmsd = rmsd_from_moments(s_q, sp, np.broadcast_to(query.sq, sp.shape), k, rotation)
-        prim, x0 = prim[bi], x0[bi, ti]
         ok = np.flatnonzero(rmsd < eps + self._slack(prim, x0, sc))
         best.add(rmsd[ok], prim[ok], x0[ok])

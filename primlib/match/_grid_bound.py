@@ -29,7 +29,8 @@ and on the stretch js ≤ m ≤ (j + 1)s
 
     g(c_w(m)) ≥ max(v_j − 2Λ(m − js)h, v_{j+1} − 2Λ((j + 1)s − m)h) ≥ (v_j + v_{j+1})/2 − Λsh
 
-(v_j = g at the anchor window js; the larger of two lines is at least their mean), Λ over
+(v_j = g at the anchor window js; the larger of two lines is at least their mean), and on
+its windows m ≤ js + s − 1 also g ≥ v_j − 2Λ(s − 1)h (v_j itself at s = 1), Λ over
 every interval that the stretch's starts and ends cross (clipped past a primitive's end, P
 is constant there: no faster). With s a divisor of K − 1, the anchor windows' ends
 (js + K − 1)h are anchor starts too: one resampled point in s·h per primitive gives every
@@ -109,14 +110,16 @@ def anchor_values(anchors: np.ndarray, n_anchor: np.ndarray, lag: int, q_chord: 
     return np.delete(gap, cross[cross < gap.size])
 
 
-def stretch_bounds(values: np.ndarray, n_stretch: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """(v_j + v_{j+1})/2 − reach_j for every stretch j of every primitive: a lower bound on
-    g(c_w) over its windows (module notes; ``reach`` = Λ·s·h per stretch). ``values`` holds
-    n_stretch[p] + 1 anchor values per primitive."""
+def stretch_bounds(values: np.ndarray, n_stretch: np.ndarray, reach: np.ndarray,
+                   s: int) -> np.ndarray:  # fmt: skip
+    """A lower bound on g(c_w) over the windows js .. js + s − 1 of every stretch j of every
+    primitive: max((v_j + v_{j+1})/2 − reach, v_j − 2·reach·(s − 1)/s) (module notes;
+    ``reach`` = Λ·s·h per stretch; the second is the anchor's own line over the stretch, v_j
+    itself at s = 1). ``values`` holds n_stretch[p] + 1 anchor values per primitive."""
     ends = np.cumsum(n_stretch + 1)
-    left = np.arange(values.size)
-    left = np.delete(left, ends - 1)  # every value but each primitive's last
-    return 0.5 * (values[left] + values[left + 1]) - reach
+    left = np.delete(np.arange(values.size), ends - 1)  # every value but each one's last
+    mean = 0.5 * (values[left] + values[left + 1]) - reach
+    return np.maximum(mean, values[left] - reach * (2.0 * (s - 1) / s))
 
 
 def beyond(bound: np.ndarray, limit: np.ndarray | float, rg_q: float, slack: float) -> np.ndarray:
@@ -143,6 +146,9 @@ class Best:
         r = np.concatenate([self.rmsd, rmsd])
         p = np.concatenate([self.prim, prim])
         x = np.concatenate([self.x0, x0])
+        if r.size > self.top:  # those at or below the top-th RMSD, ties included
+            near = np.flatnonzero(r <= np.partition(r, self.top - 1)[self.top - 1])
+            r, p, x = r[near], p[near], x[near]
         keep = np.lexsort((x, p, r))[: self.top]
         self.rmsd, self.prim, self.x0 = r[keep], p[keep], x[keep]
 
