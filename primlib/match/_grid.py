@@ -21,7 +21,9 @@ K ρ² ≥ |e_1|² + |e_K|² ≥ |e_K − e_1|²/2 = |R c_w − c_q|²/2, so
 max(|d_{i−1} − d_i|, |d_{i+1} − d_i|)/2 over the intervals crossed (d_i the stored steps),
 so over s consecutive windows between two anchor windows (values v_j, v_{j+1})
 g(c_w) ≥ (v_j + v_{j+1})/2 − Λ·s·h (:mod:`._grid_bound`, with the proofs). The anchors are P
-at every s-th grid point (s divides K − 1: an anchor window's end is an anchor too). A
+at every s-th grid point (s divides K − 1: an anchor window's end is an anchor too; s·h up
+to a third of D, and s = 1 on a scale of few windows, whose anchors are then every window's
+points and its bound the window's own). A
 stretch whose bound is beyond its gate, or beyond the scale's ``8·seeds``-th best RMSD found
 so far (stretches taken smallest bound first), cannot enter the pool: it is dropped, with a
 margin for round-off (:func:`._grid_bound.beyond`). The windows of the others are resampled;
@@ -263,12 +265,16 @@ class GridSearch:
             else:
                 part, left = left, left[:0]
             if part.size:
-                res, rows, which, m = self._points(sc, st, part)
-                limit = np.minimum(st.gate[which], best.limit())
-                windows = (res, rows, st.prim[which], m, limit, st.s == 1)
-                self._score(sc, query, eps, windows, best, slack)
+                self._score_part(sc, query, eps, st, part, best, slack)
             size = min(4 * size, self.chunk) if st.s > 1 else left.size  # few: the rest at once
         return best
+
+    def _score_part(self, sc: _Scale, query: _Query, eps: float, st: _Stretches,
+                    part: np.ndarray, best: Best, slack: float) -> None:  # fmt: skip
+        """:meth:`_score` the windows of the stretches ``part``."""
+        res, rows, which, m = self._points(sc, st, part)
+        limit = np.minimum(st.gate[which], best.limit())
+        self._score(sc, query, eps, (res, rows, st.prim[which], m, limit, st.s == 1), best, slack)
 
     def _points(self, sc: _Scale, st: _Stretches, part: np.ndarray) -> tuple:
         """The resampled points of the windows of stretches ``part``: an (M, d) array, the
@@ -289,7 +295,7 @@ class GridSearch:
         the coordinates' magnitude each (256 u, generously), over √(2K)."""
         if self._extent is None:
             pts = self.bank.points
-            self._extent = float(np.abs(pts).max()) if pts.size else 0.0
+            self._extent = float(max(pts.max(), -pts.min())) if pts.size else 0.0
         big = self._extent + query.extent
         return 256.0 * np.finfo(float).eps * big / math.sqrt(2.0 * self.opts.grid_points)
 
