@@ -98,7 +98,8 @@ def test_the_strided_balls_hold_every_window_below_the_radius_of_a_small_level(s
     rng = np.random.default_rng(seed)
     dil = int(rng.integers(1, 4))
     k = int(rng.integers(sub + stride - 1, 33))
-    pts = np.cumsum(rng.normal(size=(int(rng.integers((k - 1) * dil + 1, 400)), d)), axis=0)
+    # at least 2 windows (of one, the quantile is its own RMSD: none below it)
+    pts = np.cumsum(rng.normal(size=(int(rng.integers((k - 1) * dil + 2, 400)), d)), axis=0)
     span = (k - 1) * dil + 1
     n = pts.shape[0] - span + 1
     wins = np.stack([pts[m : m + span : dil] for m in range(n)])
