@@ -80,14 +80,14 @@ hypot(ρ̂, ·) ≥ ρ̂).
 
 **When.** Rotation ``"none"``, queries of at least 7 + s arc samples on levels of more than
 ``search.chunk`` windows (fewer: bounding them all is as cheap). A level's tree is built
-once its queries have asked for 2²¹ windows in all (at the second query on a level of 2
-million, the 16th on one of 131,072): a tree costs ~0.2 µs a point to build and a ball
-search has fixed costs of its own (~1-2 ms: two rounds, the trees' index lists), so on a
-level asked a few times, or a small one, the plain search is cheaper. Built at every
-level's first query, the trees cost the 14 bundled primitives up to 0.3 s a path (levels
-of 15,000-500,000 windows asked 1-26 times: 1.14 against 0.83 s CPU on one path); on
-1,000 primitives the 2²¹ rule measured no slower than that (4.5 and 3.2 against 4.7 and
-3.6 s CPU on two paths), and 2²⁰ no faster on either library.
+once its queries have asked for 2²⁰ windows in all (at the first query on a level of 2
+million, the 8th on one of 131,072): a tree costs ~0.2 µs a point it holds to build (half
+the level's at stride 2) and a ball search has fixed costs of its own (~1-2 ms: two rounds,
+the trees' index lists), so on a level asked a few times, or a small one, the plain search
+is cheaper. Trees of every start built at every level's first query cost the 14 bundled
+primitives up to 0.3 s a path (levels of 15,000-500,000 windows asked 1-26 times: 1.14
+against 0.83 s CPU on one path), and 2²¹ windows were chosen then. Half the build moves
+the break-even to half the windows.
 A first ball holding more than an eighth of the windows is dropped for the plain search (a
 long straight query, where most windows are straight).
 """
@@ -111,7 +111,7 @@ SUBS = (16, 8)  # points of the sub-windows described: the most a query's K allo
 _U = 2.0**-53
 _MOST = 0.125  # a first ball holding more of the windows: the plain search
 _FIRST = 0.5  # the first ball's share of the gate
-_BUILD = 1 << 21  # windows a level's queries ask for before its tree is built
+_BUILD = 1 << 20  # windows a level's queries ask for before its tree is built
 STRIDE = 2  # a tree holds the sub-windows starting at every STRIDE-th block of dil points
 
 
