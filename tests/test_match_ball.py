@@ -106,7 +106,7 @@ def test_the_strided_balls_hold_every_window_below_the_radius_of_a_small_level(s
     q = wins[rng.integers(n)] + np.cumsum(rng.normal(size=(k, d)), axis=0) * 0.1
     q += rng.normal(size=d) * 10.0
     rho = np.array([_rmsd_translation(w, q) for w in wins])
-    r = float(np.quantile(rho, rng.uniform(0.01, 0.3)))
+    r = float(np.quantile(rho, rng.uniform(0.01, 0.3))) * (1 + 1e-6) + 1e-12  # some below
     tree = cKDTree(_ball.descriptors(pts, dil, sub, stride))
     coord = float(np.abs(pts).max())
     aq = SimpleNamespace(n_windows=n, k=k, qc=q - q.mean(axis=0), dil=dil)
