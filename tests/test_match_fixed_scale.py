@@ -45,7 +45,7 @@ def test_a_path_composed_at_the_fixed_scale_is_found_on_a_large_bank():
 
 
 @pytest.mark.parametrize(("dur", "cell"), [(3.0, 0.4), (17.5, 2.2), (60.0, 0.05)])
-def test_the_grid_cell_slack_takes_the_largest_step_of_the_window_stretch(dur, cell):
+def test_the_grid_cell_slack_takes_the_largest_speed_of_the_window_stretch(dur, cell):
     # primitives that run slow, then fast: a slow window's slack is the slow steps'
     rng = np.random.default_rng(3)
     prims = []
@@ -59,17 +59,18 @@ def test_the_grid_cell_slack_takes_the_largest_step_of_the_window_stretch(dur, c
     pts, offsets = bank.points, bank.offsets
     step = np.r_[np.linalg.norm(np.diff(pts, axis=0), axis=1), 0.0]
     step[offsets[1:] - 1] = 0.0  # no step from one primitive to the next
+    speed = speed_bounds(pts, offsets)  # the interpolant's speed bound per interval
     lo, hi = int(np.ceil(cell)) + 1, int(np.ceil(dur)) + int(np.ceil(cell)) + 2
-    want = [step[max(j - lo, 0) : j + hi + 1].max() for j in range(pts.shape[0])]
-    np.testing.assert_allclose(got, want, rtol=1e-14)  # the steps' norms: an ulp apart
+    want = [speed[max(j - lo, 0) : j + hi + 1].max() for j in range(pts.shape[0])]
+    np.testing.assert_array_equal(got, want)
+    assert np.all(got >= [step[max(j - lo, 0) : j + hi + 1].max() for j in range(pts.shape[0])])
     # the bank's own steps: the arc samples' largest per primitive is theirs
     np.testing.assert_allclose(bank.steps(), step, rtol=1e-14)
     np.testing.assert_allclose(bank.max_step(), np.maximum.reduceat(step, offsets[:-1]), rtol=1e-14)
     # far below the primitive's largest step where a window starts slow and stays slow
     assert got[offsets[1] + 10] < 0.05 * bank.max_step()[1]  # reaches sample 75 at most
-    # a stretch's steps: at or above those of every start in [a, a + extra], its speed
-    # bounds' too (module notes of _grid_bound)
-    speed = speed_bounds(bank.points, bank.offsets)
+    # a stretch's speed bound: at or above that of every start in [a, a + extra]
+    # (module notes of _grid_bound)
     for extra in (0, 3, 40):
         at = np.arange(pts.shape[0])
         wide = grid._stretch_steps(sc, at, extra)
@@ -91,3 +92,34 @@ def test_the_grid_resamples_as_cubic_at_does():
     x[:50], x[50:100] = counts[:50] - 1.0, np.floor(x[50:100])  # the ends; on samples
     want = cubic_at(bank.points, bank.offsets[prim], counts, x)
     np.testing.assert_array_equal(grid._resample(prim, x), want)
+
+
+def test_the_grid_cell_slack_bounds_how_far_a_point_moves_between_alternating_steps():
+    # a zigzag: d_{i+1} = -d_i, where Catmull-Rom's speed reaches 1.5 |d| at mid-interval
+    # (1.25 times the largest step, as the slack took before, falls short)
+    from primlib.match._interp import cubic_at
+
+    n = 40
+    zig = np.zeros((n, 3))
+    zig[:, 0] = np.arange(n) * 0.01
+    zig[:, 1] = 0.5 * (-1.0) ** np.arange(n)
+    bank = BankIndex(Bank.from_samples([zig], DT))
+    grid = GridSearch(bank, resolve_options("full", None, None))
+    dur, cell = 6.0, 0.5
+    sc = _Scale(np.arange(1), np.ones(1, dtype=np.int64), dur, dur / 15, cell)
+    x0 = np.array([10.0, 17.25, 20.5])
+    slack = grid._slack(np.zeros(3, dtype=np.int64), x0, sc)
+    x = x0[:, None] + np.linspace(0.0, dur, 16)  # the window's grid points
+
+    def at(xs):  # the stored curve at sample indices xs
+        m = xs.size
+        return cubic_at(bank.points, np.zeros(m, dtype=np.int64), np.full(m, n), xs.ravel())
+
+    base = at(x)
+    for shift in np.linspace(-cell, cell, 41):  # every move within the cell
+        moved = at(x + shift)
+        far = np.linalg.norm(moved - base, axis=1).reshape(x.shape).max(axis=1)
+        assert np.all(far <= slack * (1 + 1e-12))
+    # and the bound is not slack for nothing: the point at mid-interval moves ~1.5 |d| c
+    mid = at(np.array([20.45, 20.55]))
+    assert np.linalg.norm(mid[1] - mid[0]) / 0.1 > 1.25 * bank.max_step()[0]

@@ -323,7 +323,7 @@ class GridSearch:
         at = self.bank.offsets[prim] + np.floor(first * h).astype(np.int64)
         top = self._stretch_steps(sc, at, math.ceil(s * h))
         lb = stretch_bounds(values, n_stretch, top * (s * h), s)
-        gate = eps + 1.25 * top * sc.cell
+        gate = eps + top * sc.cell  # at or above every window's (:meth:`_slack`)
         count = np.minimum(np.repeat(sc.n_start, n_stretch) - first, s)
         return _Stretches(s, prim, first, count, lb / math.sqrt(2.0 * k), gate, anchors, rows)
 
@@ -332,25 +332,27 @@ class GridSearch:
 
         Moving the start by up to h/2 and the duration to a neighbouring scale (factor
         √ratio) moves each of the K points by at most c = h/2 + D(√ratio − 1) samples along
-        the stored curve, i.e. by at most c times the largest step between the samples it
-        crosses (×1.25 for the cubic interpolation's overshoot; its stencil reaches one
-        sample either side); the RMSD against a fixed query is 1-Lipschitz in the RMS point
-        displacement. The largest step is taken over the window's own stretch, [x0 − c,
-        x0 + D + c] and the stencil (:meth:`_local_steps`), not the whole primitive: a slow
+        the stored curve, i.e. by at most c times the interpolant's largest speed over the
+        intervals it crosses: |P'| ≤ |d_i| + max(|d_{i−1} − d_i|, |d_{i+1} − d_i|)/2 on the
+        interval i (:func:`._grid_bound.speed_bounds`, proven there; up to 1.5 times the
+        largest step, at f = 1/2 between alternating steps, where the 1.25 times the largest
+        step this took before fell short); the RMSD against a fixed query is 1-Lipschitz in
+        the RMS point displacement. The largest speed is taken over the window's own
+        stretch, [x0 − c, x0 + D + c] (:meth:`_local_steps`), not the whole primitive: a slow
         piece of a fast primitive got the fast parts' slack, which let nearly every window
         past the radius-of-gyration bound (a 34-sample piece too short in arc length to
         index, on 1,000 primitives: 32.8 M of 37 M windows scored, 42 s). A fixed time scale
         (one duration) has no neighbouring scale: only the start moves.
         """
         at = self.bank.offsets[prim] + np.floor(x0).astype(np.int64)
-        return 1.25 * self._local_steps(sc, at) * sc.cell
+        return self._local_steps(sc, at) * sc.cell
 
     def _local_steps(self, sc: _Scale, at: np.ndarray) -> np.ndarray:
-        """Per stored sample j in ``at``, the largest step between consecutive samples of
-        its primitive over [j − ⌈c⌉ − 1, j + ⌈D⌉ + ⌈c⌉ + 2] (c = ``cell``): every sample a
-        grid point of a window starting in [j, j + 1) reaches, moved within its cell, with
-        the cubic's stencil (:meth:`BankIndex.steps`: the steps across primitives count 0;
-        none beyond the bank's ends). Gathered: only the windows scored need it."""
+        """Per stored sample j in ``at``, the largest speed bound of its primitive's
+        intervals (:func:`._grid_bound.speed_bounds`) over [j − ⌈c⌉ − 1, j + ⌈D⌉ + ⌈c⌉ + 2]
+        (c = ``cell``): every interval a grid point of a window starting in [j, j + 1)
+        crosses, moved within its cell (a sample to spare either side; 0 past a primitive's
+        ends and the bank's). Gathered: only the windows scored need it."""
         padded = self._padded_steps()
         span = at[..., None] - sc.back + np.arange(1, sc.size + 1)
         return np.take(padded, span, mode="clip").max(axis=-1)
@@ -368,7 +370,7 @@ class GridSearch:
         return wide[np.clip((at - sc.back) // width, 0, blocks.size - 1)]
 
     def _blocks(self, width: int) -> np.ndarray:
-        """Maxima of the steps over blocks [i·width, (i + 1)·width), width a power of 2
+        """Maxima of the speed bounds over blocks [i·width, (i + 1)·width), width a power of 2
         (each from the one of half its width), kept."""
         if width not in self._block_max:
             if width == 1:
@@ -381,9 +383,10 @@ class GridSearch:
         return self._block_max[width]
 
     def _padded_steps(self) -> np.ndarray:
-        """:meth:`BankIndex.steps` with a 0 either side (gathers clipped to them read 0)."""
+        """The speed bounds of :meth:`_blocks` (width 1) with a 0 either side (gathers
+        clipped to them read 0)."""
         if self._steps is None:
-            self._steps = np.concatenate([[0.0], self.bank.steps(), [0.0]])
+            self._steps = np.concatenate([[0.0], self._blocks(1), [0.0]])
         return self._steps
 
     def _score(self, sc: _Scale, query: _Query, eps: float, part: tuple, best: Best,
