@@ -55,7 +55,7 @@ def test_the_grid_cell_slack_takes_the_largest_speed_of_the_window_stretch(dur, 
     bank = BankIndex(Bank.from_samples(prims, DT))
     grid = GridSearch(bank, resolve_options("full", None, None))
     sc = _Scale(np.arange(bank.k), np.ones(bank.k, dtype=np.int64), dur, dur / 15, cell)
-    got = grid._local_steps(sc, np.arange(bank.points.shape[0]))
+    got = grid._local_speeds(sc, np.arange(bank.points.shape[0]))
     pts, offsets = bank.points, bank.offsets
     step = np.r_[np.linalg.norm(np.diff(pts, axis=0), axis=1), 0.0]
     step[offsets[1:] - 1] = 0.0  # no step from one primitive to the next
@@ -73,7 +73,7 @@ def test_the_grid_cell_slack_takes_the_largest_speed_of_the_window_stretch(dur, 
     # (module notes of _grid_bound)
     for extra in (0, 3, 40):
         at = np.arange(pts.shape[0])
-        wide = grid._stretch_steps(sc, at, extra)
+        wide = grid._stretch_speeds(sc, at, extra)
         assert np.all(wide >= [got[j : j + extra + 1].max() for j in at])
         lo, hi = sc.back, sc.size - sc.back + extra
         assert np.all(wide >= [speed[max(j - lo, 0) : j + hi].max() for j in at])

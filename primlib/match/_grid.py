@@ -134,9 +134,9 @@ class _Query:
 @dataclass(frozen=True)
 class _Scale:
     """One time scale: the primitives long enough (``prim``), their window counts, the
-    duration D and stride h (samples), the cell half-width c, and the stretch of steps a
+    duration D and stride h (samples), the cell half-width c, and the stretch of intervals a
     window's slack takes, [j − back, j − back + size) for a start in [j, j + 1)
-    (:meth:`GridSearch._local_steps`)."""
+    (:meth:`GridSearch._local_speeds`)."""
 
     prim: np.ndarray
     n_start: np.ndarray
@@ -184,7 +184,7 @@ class GridSearch:
     few: ClassVar[int] = 1 << 16  # windows of a scale below which s = 1 (each its own)
     _table: np.ndarray | None = field(default=None, init=False, repr=False)
     _extent: float | None = field(default=None, init=False, repr=False)
-    _steps: np.ndarray | None = field(default=None, init=False, repr=False)
+    _speeds: np.ndarray | None = field(default=None, init=False, repr=False)
     _block_max: dict = field(default_factory=dict, init=False, repr=False)
 
     def _scales(self, path: PathPiece, a: float, b: float) -> Iterator[_Scale]:
@@ -319,9 +319,9 @@ class GridSearch:
         rows = first + np.repeat(base[:-1], n_stretch)  # s = 1: a window's first anchor
         first *= s
         # the largest speed bound over the intervals the stretch's starts and ends cross,
-        # and every gate's local steps (of its starts [a, a + ⌈s·h⌉])
+        # and every gate's local speed bounds (of its starts [a, a + ⌈s·h⌉])
         at = self.bank.offsets[prim] + np.floor(first * h).astype(np.int64)
-        top = self._stretch_steps(sc, at, math.ceil(s * h))
+        top = self._stretch_speeds(sc, at, math.ceil(s * h))
         lb = stretch_bounds(values, n_stretch, top * (s * h), s)
         gate = eps + top * sc.cell  # at or above every window's (:meth:`_slack`)
         count = np.minimum(np.repeat(sc.n_start, n_stretch) - first, s)
@@ -338,34 +338,34 @@ class GridSearch:
         largest step, at f = 1/2 between alternating steps, where the 1.25 times the largest
         step this took before fell short); the RMSD against a fixed query is 1-Lipschitz in
         the RMS point displacement. The largest speed is taken over the window's own
-        stretch, [x0 − c, x0 + D + c] (:meth:`_local_steps`), not the whole primitive: a slow
+        stretch, [x0 − c, x0 + D + c] (:meth:`_local_speeds`), not the whole primitive: a slow
         piece of a fast primitive got the fast parts' slack, which let nearly every window
         past the radius-of-gyration bound (a 34-sample piece too short in arc length to
         index, on 1,000 primitives: 32.8 M of 37 M windows scored, 42 s). A fixed time scale
         (one duration) has no neighbouring scale: only the start moves.
         """
         at = self.bank.offsets[prim] + np.floor(x0).astype(np.int64)
-        return self._local_steps(sc, at) * sc.cell
+        return self._local_speeds(sc, at) * sc.cell
 
-    def _local_steps(self, sc: _Scale, at: np.ndarray) -> np.ndarray:
+    def _local_speeds(self, sc: _Scale, at: np.ndarray) -> np.ndarray:
         """Per stored sample j in ``at``, the largest speed bound of its primitive's
         intervals (:func:`._grid_bound.speed_bounds`) over [j − ⌈c⌉ − 1, j + ⌈D⌉ + ⌈c⌉ + 2]
         (c = ``cell``): every interval a grid point of a window starting in [j, j + 1)
         crosses, moved within its cell (a sample to spare either side; 0 past a primitive's
         ends and the bank's). Gathered: only the windows scored need it."""
-        padded = self._padded_steps()
+        padded = self._padded_speeds()
         span = at[..., None] - sc.back + np.arange(1, sc.size + 1)
         return np.take(padded, span, mode="clip").max(axis=-1)
 
-    def _stretch_steps(self, sc: _Scale, at: np.ndarray, extra: int) -> np.ndarray:
-        """At or above :meth:`_local_steps` of every j in [a, a + extra] for each a in
-        ``at``: the largest step over [a − back, a − back + size + extra), taken on maxima
-        of blocks of B steps (B a power of 2 near 1/8 of that: one filter over N/B block
-        maxima, kept per B)."""
+    def _stretch_speeds(self, sc: _Scale, at: np.ndarray, extra: int) -> np.ndarray:
+        """At or above :meth:`_local_speeds` of every j in [a, a + extra] for each a in
+        ``at``: the largest speed bound over [a − back, a − back + size + extra), taken on
+        maxima of blocks of B of them (B a power of 2 near 1/8 of that: one filter over N/B
+        block maxima, kept per B)."""
         reach = sc.size + extra
         width = 1 << max(0, (reach // 8).bit_length() - 1)
         blocks = self._blocks(width)
-        nb = (reach - 1) // width + 2  # blocks that any `reach` consecutive steps touch
+        nb = (reach - 1) // width + 2  # blocks that any `reach` consecutive intervals touch
         wide = maximum_filter1d(blocks, size=nb, origin=-(nb // 2), mode="constant")
         return wide[np.clip((at - sc.back) // width, 0, blocks.size - 1)]
 
@@ -382,12 +382,12 @@ class GridSearch:
                 self._block_max[width] = pairs.reshape(-1, 2).max(axis=1)
         return self._block_max[width]
 
-    def _padded_steps(self) -> np.ndarray:
+    def _padded_speeds(self) -> np.ndarray:
         """The speed bounds of :meth:`_blocks` (width 1) with a 0 either side (gathers
         clipped to them read 0)."""
-        if self._steps is None:
-            self._steps = np.concatenate([[0.0], self._blocks(1), [0.0]])
-        return self._steps
+        if self._speeds is None:
+            self._speeds = np.concatenate([[0.0], self._blocks(1), [0.0]])
+        return self._speeds
 
     def _score(self, sc: _Scale, query: _Query, eps: float, part: tuple, best: Best,
                slack: float) -> None:  # fmt: skip
