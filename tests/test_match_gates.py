@@ -18,13 +18,17 @@ def _query():
     return IndexSearch(bank, SearchOptions()).arc_query(path, 0.0, 1.0, 0.05)
 
 
-def test_valid_windows_are_those_with_the_arc_the_piece_needs_left():
+def test_valid_windows_and_over_are_those_with_the_arc_the_piece_needs_left():
+    # valid: inside the primitive; over: running past its last point (test_match_ends)
     aq = _query()
     gates = Gates.of(aq, 0.05)
     left = np.asarray(aq.level.left)[: aq.n_windows]
-    np.testing.assert_array_equal(gates.valid((0, aq.n_windows)), left >= gates.need)
+    valid = gates.valid((0, aq.n_windows))
+    valid[gates.over] = True
+    np.testing.assert_array_equal(valid, left >= gates.need)
     some = np.arange(0, aq.n_windows, 7)
-    np.testing.assert_array_equal(gates.valid(some), left[some] >= gates.need)
+    got = gates.valid(some) | np.isin(some, gates.over)
+    np.testing.assert_array_equal(got, left[some] >= gates.need)
     # a piece fits at a primitive's start, not at its last point
     end = int(aq.level.start[1]) - 1
     assert gates.valid((0, 1))[0] and not gates.valid(np.array([end]))[0]

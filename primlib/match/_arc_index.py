@@ -75,13 +75,27 @@ class Level:
         ``(n · 2^shift) · step0`` (an exact integer times step0, one rounding)."""
         return (np.asarray(n, dtype=np.int64) << self.shift) * self.step0
 
+    @property
+    def counts(self) -> np.ndarray:
+        """Points of each primitive, shape (k,)."""
+        return np.diff(np.append(self.start, self.prim.size))
+
     def fits(self, need: float) -> np.ndarray:
         """Whether each point has at least ``need`` of arc left, shape (M,) bool: exactly
-        ``left >= need``. The arc left falls along a primitive (each rounding is monotone),
-        so the points that fit are the first c_p of each: c_p estimated from the step,
-        then moved one point at a time while the formula of :attr:`left` says otherwise
-        (the estimate is off by a rounding, at most a point or two)."""
-        counts = np.diff(np.append(self.start, self.prim.size))
+        ``left >= need`` (:meth:`first_of`: the first :meth:`fit_counts` of each)."""
+        return self.first_of(self.fit_counts(need))
+
+    def first_of(self, c: np.ndarray) -> np.ndarray:
+        """Mask (M,) of the first c_p points of each primitive p."""
+        runs = np.column_stack([c, self.counts - c]).ravel()
+        return np.repeat(np.tile(np.array([True, False]), c.size), runs)
+
+    def fit_counts(self, need: float) -> np.ndarray:
+        """Points of each primitive with at least ``need`` of arc left, shape (k,). The arc
+        left falls along a primitive (each rounding is monotone), so they are its first c_p:
+        c_p estimated from the step, then moved one point at a time while the formula of
+        :attr:`left` says otherwise (off by a rounding, at most a point or two)."""
+        counts = self.counts
         with np.errstate(invalid="ignore", over="ignore"):
             est = np.floor((self.length - need) / (self.step0 * (1 << self.shift))) + 1.0
         c = np.clip(np.nan_to_num(est, nan=0.0), 0, counts).astype(np.int64)
@@ -94,8 +108,7 @@ class Level:
                 break
             c[up] += 1
             c[down] -= 1
-        runs = np.column_stack([c, counts - c]).ravel()
-        return np.repeat(np.tile(np.array([True, False]), counts.size), runs)
+        return c
 
 
 class _PerPoint:
@@ -482,6 +495,27 @@ class ArcQuery:
         if hit is None:
             hit = self.memo["tau"] = (self.u - self.u[0]) / max(self.u[-1] - self.u[0], 1e-300)
         return hit
+
+    def at_starts(self, start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The k points (m, k, d) and sample indices (m, k) of the windows starting at
+        fractional level positions ``start`` (m,), linear between points, and whether each
+        has the arc left in its primitive that :class:`._gates.Gates` asks of a window.
+
+        A window may run past its primitive's last point by as much as the gates allow
+        (chords under-estimate arc): it then ends there, its points evenly spaced (the
+        points past it are another primitive's)."""
+        lv, k, top = self.level, self.k, self.level.pts.shape[0] - 1
+        p0 = lv.prim[np.clip(np.floor(start).astype(np.int64), 0, top)]
+        first = lv.start[p0]
+        end = np.append(lv.start[1:], top + 1)[p0] - 1.0  # the primitive's last point
+        left = lv.length[p0] - (start - first) * lv.step  # Gates.of's test, on arc
+        ok = (start >= first) & (left >= (self.ell - max(self.step, 0.02 * self.ell)) * (1 - 1e-9))
+        gap = np.minimum(end - start, (k - 1) * self.dil) / max(k - 1, 1)  # point to point
+        pos = start[:, None] + np.arange(k) * gap[:, None]
+        i0 = np.clip(np.floor(pos).astype(np.int64), 0, top - 1)
+        f = np.clip(pos - i0, 0.0, 1.0)
+        pts = lv.pts[i0] * (1.0 - f[..., None]) + lv.pts[i0 + 1] * f[..., None]
+        return pts, lv.x[i0] * (1.0 - f) + lv.x[i0 + 1] * f, ok
 
     def groups(self, parts: int) -> tuple[tuple[int, int, float], ...]:
         """:func:`~._bounds.speed_groups` of :attr:`tau` (once per query: a screen asks for

@@ -21,8 +21,9 @@ class Gates:
 
     gate: float
     stored: np.ndarray | None  # RMS deviation of each window's smoothed samples, or None
-    fits: np.ndarray  # (M,) bool: the level's points with ``need`` of arc left
+    fits: np.ndarray  # (M,) bool: the windows inside their primitive
     need: float  # arc a window must have left
+    over: np.ndarray  # starts (< n_windows) of the windows with ``need`` left, not inside
 
     @classmethod
     def of(cls, aq: ArcQuery, eps: float) -> Gates:
@@ -32,9 +33,17 @@ class Gates:
         gate = 3.0 * (eps + aq.smoothing) + 0.5 * aq.level.step * (1.0 + 1e-6)
         stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
         # chord lengths under-estimate arc length a little (more for the stored samples than
-        # for the densely sampled query): let a piece reach a primitive's very end
+        # for the densely sampled query): let a piece reach a primitive's very end. A window
+        # inside its primitive has (k - 1)·step > ell - step of arc: it fits. One that runs
+        # past the primitive's last point (its last points another primitive's) is scored
+        # ending there (:meth:`._arc_index.ArcQuery.at_starts`), apart: ``over``
+        lv = aq.level
         need = aq.ell - max(aq.step, 0.02 * aq.ell)
-        return cls(gate, stored, aq.level.fits(need), need)
+        fit = lv.fit_counts(need)
+        inside = np.minimum(np.maximum(lv.counts - aq.span + 1, 0), fit)
+        extra = fit - inside  # a few per primitive at most
+        over = np.repeat(lv.start + inside, extra) + _ranks(extra)
+        return cls(gate, stored, lv.first_of(inside), need, over[over < aq.n_windows])
 
     @property
     def top(self) -> float:
@@ -50,3 +59,9 @@ class Gates:
     def valid(self, ws: np.ndarray | tuple[int, int]) -> np.ndarray:
         """Whether each window has ``need`` of arc left (a new array: callers narrow it)."""
         return self.fits[ws[0] : ws[1]].copy() if isinstance(ws, tuple) else self.fits[ws]
+
+
+def _ranks(c: np.ndarray) -> np.ndarray:
+    """0, 1, ..., c_p - 1 for each p in turn."""
+    total = int(c.sum())
+    return np.arange(total) - np.repeat(np.cumsum(c) - c, c)

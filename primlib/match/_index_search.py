@@ -69,6 +69,7 @@ from primlib.match._bounds import (
     speed_screen,
 )
 from primlib.match._cone import not_in as _not_in
+from primlib.match._ends import combine, offer_overrun, score_points
 from primlib.match._gates import Gates as _Gates
 from primlib.match._grid import GridSearch
 from primlib.match._kabsch import rmsd_from_moments
@@ -206,7 +207,7 @@ class IndexSearch:
     def speed_bound(self, aq: ArcQuery, ws: np.ndarray | tuple[int, int],
                     parts: int = 4) -> np.ndarray:  # fmt: skip
         """Lower bound of the speed-profile term ℓ·RMS(τ_w − τ_q) of the score
-        (:meth:`_combine`, :func:`._bounds.speed_bound`) of windows ``ws`` (an index array,
+        (:func:`._ends.combine`, :func:`._bounds.speed_bound`) of windows ``ws`` (an index array,
         or a range (c0, c1))."""
         csum = aq.index.x_sums(aq.jb, aq.dil)
         return speed_bound(csum, aq.level.x, ws, aq.dil, aq.tau, aq.ell, parts, aq.groups(parts))
@@ -266,21 +267,6 @@ class IndexSearch:
         lo, hi = self.opts.time_scale
         return (scale >= lo / 1.1) & (scale <= hi * 1.1)
 
-    def _combine(self, aq: ArcQuery, shape: np.ndarray, xw: np.ndarray) -> np.ndarray:
-        """Shape RMSD combined with ℓ·(RMS normalised-time error at the arc samples).
-
-        A normalised-time error δτ at an arc sample moves the uniform-time sample by about
-        ℓ·δτ along the curve: adding it ranks pieces of the same shape traversed with another
-        speed profile below the right one (never below the shape RMSD, so the lower bounds
-        still hold).
-        """
-        tau_q = aq.tau
-        dur = xw[:, -1] - xw[:, 0]
-        still = dur <= 1e-9  # a stationary stretch: no speed profile to compare
-        tau_w = (xw - xw[:, :1]) / np.where(still, 1.0, dur)[:, None]
-        tau_w[still] = tau_q
-        return np.hypot(shape, aq.ell * np.sqrt(np.mean((tau_w - tau_q) ** 2, axis=1)))
-
     def score(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact (combined score, shape RMSD) of the windows starting at ``ws``, float64.
 
@@ -299,25 +285,14 @@ class IndexSearch:
         sq_ = np.broadcast_to(aq.sq, (ws.size, 3)) if aq.per_axis else aq.sq
         shape = rmsd_from_moments(s_, sp, sq_, k, self.opts.rotation)
         xw = x_w[ws]
-        return self._combine(aq, shape, xw), shape
+        return combine(aq, shape, xw), shape
 
     def score_shifted(self, aq: ArcQuery, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Combined scores of windows starting at fractional level positions (linear
-        between arc samples) and their start sample index; +inf where a window leaves its
-        primitive."""
-        lv, k = aq.level, aq.k
-        pos = start[:, None] + np.arange(k) * aq.dil
-        i0 = np.clip(np.floor(pos).astype(np.int64), 0, lv.pts.shape[0] - 2)
-        f = np.clip(pos - i0, 0.0, 1.0)
-        ok = (start >= 0) & (lv.prim[i0[:, 0]] == lv.prim[i0[:, -1] + 1])
-        pts = lv.pts[i0] * (1.0 - f[..., None]) + lv.pts[i0 + 1] * f[..., None]
-        pc = pts - pts.mean(axis=1, keepdims=True)
-        s_ = np.einsum("mka,kb->mab", pc, aq.qc)
-        sp_ = (pc * pc).sum(axis=1) if aq.per_axis else (pc * pc).sum(axis=(1, 2))
-        sq_ = np.broadcast_to(aq.sq, (start.size, 3)) if aq.per_axis else aq.sq
-        xw = lv.x[i0] * (1.0 - f) + lv.x[i0 + 1] * f
-        r = self._combine(aq, rmsd_from_moments(s_, sp_, sq_, k, self.opts.rotation), xw)
-        return np.where(ok, r, np.inf), xw[:, 0]
+        """Combined scores of the windows starting at fractional level positions
+        (:meth:`._arc_index.ArcQuery.at_starts`) and their start sample index; +inf where
+        one has less arc left in its primitive than the gates allow."""
+        pts, xw, ok = aq.at_starts(start)
+        return np.where(ok, score_points(aq, pts, xw, self.opts.rotation)[0], np.inf), xw[:, 0]
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
         """Best distinct arc-window candidates below the gate 3·(eps + δ) + Δ/2, best first
@@ -371,6 +346,7 @@ class IndexSearch:
         """
         g = gates.top
         pool = CandidatePool(self.pool * self.opts.seeds, self.pool_cap, g, math.sqrt(2.0) * g)
+        offer_overrun(self, aq, gates, pool)
         if aq.n_windows <= self.chunk:
             self._few(aq, gates, pool)
             return pool
