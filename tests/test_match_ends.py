@@ -37,14 +37,15 @@ def test_gates_split_the_windows_with_arc_left_into_inside_and_over():
 def test_at_starts_takes_the_level_points_inside_and_ends_at_the_last_point_past_it():
     aq = _query()
     lv, k, dil = aq.level, aq.k, aq.dil
+    need = Gates.of(aq, 0.05).need
     inside = np.array([0, 5, 17])
-    pts, x, ok = aq.at_starts(inside.astype(float))
+    pts, x, ok = aq.at_starts(inside.astype(float), need)
     idx = inside[:, None] + dil * np.arange(k)
     np.testing.assert_array_equal(pts, lv.pts[idx])
     np.testing.assert_array_equal(x, lv.x[idx])
     assert ok.all()
     over = Gates.of(aq, 0.05).over
-    pts, x, ok = aq.at_starts(over.astype(float))
+    pts, x, ok = aq.at_starts(over.astype(float), need)
     last = int(lv.start[1]) - 1  # the helix's last level point
     assert ok.all()
     np.testing.assert_allclose(pts[:, -1], np.broadcast_to(lv.pts[last], pts[:, -1].shape))
@@ -57,7 +58,7 @@ def test_at_starts_takes_the_level_points_inside_and_ends_at_the_last_point_past
     want = lv.x[i0] + (pos - i0) * (lv.x[i0 + 1] - lv.x[i0])
     np.testing.assert_allclose(x, want, rtol=0, atol=1e-9)
     # too little arc left, or a start before the bank's first point: not a window
-    _, _, ok = aq.at_starts(np.array([last - 2.0, -0.25]))
+    _, _, ok = aq.at_starts(np.array([last - 2.0, -0.25]), need)
     assert not ok.any()
 
 

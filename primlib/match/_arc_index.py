@@ -496,10 +496,11 @@ class ArcQuery:
             hit = self.memo["tau"] = (self.u - self.u[0]) / max(self.u[-1] - self.u[0], 1e-300)
         return hit
 
-    def at_starts(self, start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def at_starts(self, start: np.ndarray,
+                  need: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
         """The k points (m, k, d) and sample indices (m, k) of the windows starting at
         fractional level positions ``start`` (m,), linear between points, and whether each
-        has the arc left in its primitive that :class:`._gates.Gates` asks of a window.
+        has ``need`` of arc left in its primitive (:attr:`._gates.Gates.need`).
 
         A window may run past its primitive's last point by as much as the gates allow
         (chords under-estimate arc): it then ends there, its points evenly spaced (the
@@ -509,7 +510,7 @@ class ArcQuery:
         first = lv.start[p0]
         end = np.append(lv.start[1:], top + 1)[p0] - 1.0  # the primitive's last point
         left = lv.length[p0] - (start - first) * lv.step  # Gates.of's test, on arc
-        ok = (start >= first) & (left >= (self.ell - max(self.step, 0.02 * self.ell)) * (1 - 1e-9))
+        ok = (start >= first) & (left >= need * (1 - 1e-9))
         gap = np.minimum(end - start, (k - 1) * self.dil) / max(k - 1, 1)  # point to point
         pos = start[:, None] + np.arange(k) * gap[:, None]
         i0 = np.clip(np.floor(pos).astype(np.int64), 0, top - 1)

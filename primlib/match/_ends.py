@@ -65,12 +65,13 @@ def offer_overrun(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: Candida
     """Score the windows of ``gates.over`` ending at their primitive's last point and offer
     those below their gate and in the time-scale range to ``pool`` (module notes)."""
     ws, lv = gates.over, aq.level
+    search.stats.windows += ws.size
+    in_range, x_end = search.in_range(aq, ws)  # first: it keeps ~15 % (novel paths)
+    ws, x_end = ws[in_range], x_end[in_range]
     if ws.size == 0:
         return
-    in_range, x_end = search.in_range(aq, ws)
-    pts, xw, ok = aq.at_starts(ws.astype(float))
+    pts, xw, ok = aq.at_starts(ws.astype(float), gates.need)
     r, shape = score_points(aq, pts, xw, search.opts.rotation)
-    search.stats.windows += ws.size
     search.stats.scored += ws.size
-    ok &= in_range & (shape < gates.at(ws))
+    ok &= shape < gates.at(ws)
     pool.offer_arrays(r[ok], lv.prim[ws[ok]], lv.x[ws[ok]], x_end[ok], ws[ok])

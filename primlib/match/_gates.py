@@ -3,6 +3,7 @@ RMSD (:class:`Gates`, used by :mod:`._index_search`)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -32,13 +33,12 @@ class Gates:
         # copy is within eps + smoothing (+ the stored window's own) of what the index holds
         gate = 3.0 * (eps + aq.smoothing) + 0.5 * aq.level.step * (1.0 + 1e-6)
         stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
-        # chord lengths under-estimate arc length a little (more for the stored samples than
-        # for the densely sampled query): let a piece reach a primitive's very end. A window
-        # inside its primitive has (k - 1)·step > ell - step of arc: it fits. One that runs
-        # past the primitive's last point (its last points another primitive's) is scored
-        # ending there (:meth:`._arc_index.ArcQuery.at_starts`), apart: ``over``
+        # a window inside its primitive has (k - 1)·step > ell - step of arc: it fits. One
+        # that runs past the primitive's last point (its last points another primitive's)
+        # is scored ending there (:meth:`._arc_index.ArcQuery.at_starts`), apart: ``over``,
+        # as far as a copy of another arc length is still within the gate (:func:`overrun`)
         lv = aq.level
-        need = aq.ell - max(aq.step, 0.02 * aq.ell)
+        need = aq.ell - overrun(aq.ell, aq.step, gate)
         fit = lv.fit_counts(need)
         inside = np.minimum(np.maximum(lv.counts - aq.span + 1, 0), fit)
         extra = fit - inside  # a few per primitive at most
@@ -59,6 +59,23 @@ class Gates:
     def valid(self, ws: np.ndarray | tuple[int, int]) -> np.ndarray:
         """Whether each window has ``need`` of arc left (a new array: callers narrow it)."""
         return self.fits[ws[0] : ws[1]].copy() if isinstance(ws, tuple) else self.fits[ws]
+
+
+def overrun(ell: float, step: float, gate: float) -> float:
+    """How far past its primitive's last point a window of arc ``ell`` may run: at least a
+    step or 2 % (chord lengths under-estimate arc, more for the stored samples than for the
+    densely sampled query), and as far as a copy whose arc is shorter by r·ell is within
+    ``gate`` of the window of the query's arc at its start, inside a primitive.
+
+    That window's arc sample i (at s_i = i·ell/(k - 1) from the start) lies r·s_i further
+    along the curve than the copy's, at most that far in space: r·ell/√3 RMS over the
+    samples. The gate keeps such windows inside a primitive up to r = √3·gate/ell; at its
+    end the same r is let through (capped at a quarter). Hand-drawn copies of one shape
+    differ in arc by 10-20 % (LASA handwriting, ``benchmarks/bench_match_real.py``): with
+    2 % alone, a whole demonstration was matched nowhere in the index while the exhaustive
+    grid matched it whole.
+    """
+    return max(step, ell * max(0.02, min(0.25, math.sqrt(3.0) * gate / max(ell, 1e-300))))
 
 
 def _ranks(c: np.ndarray) -> np.ndarray:

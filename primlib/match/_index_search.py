@@ -287,11 +287,12 @@ class IndexSearch:
         xw = x_w[ws]
         return combine(aq, shape, xw), shape
 
-    def score_shifted(self, aq: ArcQuery, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def score_shifted(self, aq: ArcQuery, start: np.ndarray,
+                      need: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Combined scores of the windows starting at fractional level positions
         (:meth:`._arc_index.ArcQuery.at_starts`) and their start sample index; +inf where
-        one has less arc left in its primitive than the gates allow."""
-        pts, xw, ok = aq.at_starts(start)
+        one has less than ``need`` of arc left in its primitive."""
+        pts, xw, ok = aq.at_starts(start, need)
         return np.where(ok, score_points(aq, pts, xw, self.opts.rotation)[0], np.inf), xw[:, 0]
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
@@ -321,12 +322,13 @@ class IndexSearch:
         if aq.n_windows <= 0:
             return []
         self.stats.queries += 1
-        pool = self._best_first(aq, _Gates.of(aq, eps))
+        gates = _Gates.of(aq, eps)
+        pool = self._best_first(aq, gates)
         if pool.keys.size == 0:
             return []
         stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
         extra = 0.0 if stored is None else float(stored[pool.keys].max())
-        return self._reshift(aq, pool, eps + aq.smoothing + extra)
+        return self._reshift(aq, pool, eps + aq.smoothing + extra, gates.need)
 
     def _best_first(self, aq: ArcQuery, gates: _Gates) -> CandidatePool:
         """Score windows best-first in order of lower bounds until none left can enter the
@@ -547,12 +549,13 @@ class IndexSearch:
         lv = aq.level
         pool.offer_arrays(r[ok], lv.prim[ws[ok]], lv.x[ws[ok]], x_end[ok], ws[ok])
 
-    def _reshift(self, aq: ArcQuery, pool: CandidatePool, eps: float) -> list[Candidate]:
+    def _reshift(self, aq: ArcQuery, pool: CandidatePool, eps: float,
+                 need: float) -> list[Candidate]:  # fmt: skip
         """Re-score the pool at sub-step shifts of its starts (the window grid puts a stored
         copy up to half a base step from a window start), keep each window's best; the best
         ``seeds`` and every window within √2·(3·eps + Δ_b/8) of the best are the seeds."""
         base = pool.keys.astype(float)
-        r, x0 = self.score_shifted(aq, (base[:, None] + _SHIFTS).ravel())
+        r, x0 = self.score_shifted(aq, (base[:, None] + _SHIFTS).ravel(), need)
         r, x0 = r.reshape(base.size, -1), x0.reshape(base.size, -1)
         best = np.argmin(r, axis=1)
         g0 = aq.level.garc[pool.keys] + _SHIFTS[best] * aq.level.step
