@@ -28,10 +28,14 @@ def test_gates_split_the_windows_with_arc_left_into_inside_and_over():
     left_ok = np.asarray(lv.left)[:n] >= gates.need
     inside = lv.prim[m + aq.span - 1] == lv.prim[m]
     np.testing.assert_array_equal(gates.valid((0, n)), left_ok & inside)
-    over = np.zeros(n, dtype=bool)
+    over = np.zeros(lv.prim.size, dtype=bool)
     over[gates.over] = True
-    np.testing.assert_array_equal(over, left_ok & ~inside)
+    np.testing.assert_array_equal(over[:n], left_ok & ~inside)
     assert gates.over.size > 0  # the helix's last windows run past its last point
+    # past the last whole window: the line's (the bank's last primitive) that have the arc
+    tail = np.arange(n, lv.prim.size)
+    np.testing.assert_array_equal(over[n:], np.asarray(lv.left)[tail] >= gates.need)
+    assert over[n:].any()
 
 
 def test_at_starts_takes_the_level_points_inside_and_ends_at_the_last_point_past_it():
@@ -45,6 +49,7 @@ def test_at_starts_takes_the_level_points_inside_and_ends_at_the_last_point_past
     np.testing.assert_array_equal(x, lv.x[idx])
     assert ok.all()
     over = Gates.of(aq, 0.05).over
+    over = over[lv.prim[over] == 0]  # the helix's
     pts, x, ok = aq.at_starts(over.astype(float), need)
     last = int(lv.start[1]) - 1  # the helix's last level point
     assert ok.all()
@@ -62,21 +67,25 @@ def test_at_starts_takes_the_level_points_inside_and_ends_at_the_last_point_past
     assert not ok.any()
 
 
-def _bundled() -> BankIndex:
+def _bundled(last: str | None = None) -> BankIndex:
+    """The bundled library, with primitive ``last`` moved to the end of the bank."""
     files = sorted(f for f in (ROOT / "data" / "library").glob("*.csv")
                    if not f.name.endswith(".signal.csv"))  # fmt: skip
+    files.sort(key=lambda f: f.stem == last)
     pieces = [Trajectory.from_csv(f).sample(DT) for f in files]
     return BankIndex(Bank.from_samples(pieces, DT, names=[f.stem for f in files]))
 
 
+@pytest.mark.parametrize("last", [None, "line-diagonal"])
 @pytest.mark.parametrize("seed", [0, 2, 5])
-def test_a_whole_noisy_line_is_one_segment_as_the_grid_finds_it(seed):
+def test_a_whole_noisy_line_is_one_segment_as_the_grid_finds_it(seed, last):
     # a whole stored line, rotated, time-scaled, with white noise of 1 % of its extent:
     # smoothed, its arc is 1-2 % longer than the stored line's, so its windows run past the
     # line's last point. Scored on the next primitive's points they matched nothing, and
     # the path came out in two pieces of other primitives where the exhaustive grid
-    # (benchmarks/_reference_search.py) matches the line whole.
-    bank = _bundled()
+    # (benchmarks/_reference_search.py) matches the line whole. Last in the bank, its
+    # windows past the last whole window were not windows at all.
+    bank = _bundled(last)
     row = list(bank.names).index("line-diagonal")
     rng = np.random.default_rng(seed)
     p = bank.points[bank.offsets[row] : bank.offsets[row + 1]]

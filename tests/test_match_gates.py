@@ -24,7 +24,7 @@ def test_valid_windows_and_over_are_those_with_the_arc_the_piece_needs_left():
     gates = Gates.of(aq, 0.05)
     left = np.asarray(aq.level.left)[: aq.n_windows]
     valid = gates.valid((0, aq.n_windows))
-    valid[gates.over] = True
+    valid[gates.over[gates.over < aq.n_windows]] = True
     np.testing.assert_array_equal(valid, left >= gates.need)
     some = np.arange(0, aq.n_windows, 7)
     got = gates.valid(some) | np.isin(some, gates.over)

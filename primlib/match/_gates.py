@@ -24,7 +24,7 @@ class Gates:
     stored: np.ndarray | None  # RMS deviation of each window's smoothed samples, or None
     fits: np.ndarray  # (M,) bool: the windows inside their primitive
     need: float  # arc a window must have left
-    over: np.ndarray  # starts (< n_windows) of the windows with ``need`` left, not inside
+    over: np.ndarray  # starts of the windows with ``need`` left, not inside (any < M)
 
     @classmethod
     def of(cls, aq: ArcQuery, eps: float) -> Gates:
@@ -43,7 +43,7 @@ class Gates:
         inside = np.minimum(np.maximum(lv.counts - aq.span + 1, 0), fit)
         extra = fit - inside  # a few per primitive at most
         over = np.repeat(lv.start + inside, extra) + _ranks(extra)
-        return cls(gate, stored, lv.first_of(inside), need, over[over < aq.n_windows])
+        return cls(gate, stored, lv.first_of(inside), need, over)
 
     @property
     def top(self) -> float:
@@ -54,7 +54,12 @@ class Gates:
             return self.gate if self.stored is None else self.gate + 3.0 * self.stored[slice(*ws)]
         if self.stored is None:
             return np.full(ws.size, self.gate)
-        return self.gate + 3.0 * self.stored[ws]
+        return self.gate + 3.0 * self.deviation(ws)
+
+    def deviation(self, ws: np.ndarray) -> np.ndarray:
+        """Each window's stored deviation; past the last whole window (the bank's last
+        primitive's ``over`` windows) the last whole window's, which holds their points."""
+        return self.stored[np.minimum(ws, self.stored.size - 1)]
 
     def valid(self, ws: np.ndarray | tuple[int, int]) -> np.ndarray:
         """Whether each window has ``need`` of arc left (a new array: callers narrow it)."""

@@ -326,8 +326,7 @@ class IndexSearch:
         pool = self._best_first(aq, gates)
         if pool.keys.size == 0:
             return []
-        stored = aq.index.window_deviation(aq.jb, aq.n_windows, aq.span)
-        extra = 0.0 if stored is None else float(stored[pool.keys].max())
+        extra = 0.0 if gates.stored is None else float(gates.deviation(pool.keys).max())
         return self._reshift(aq, pool, eps + aq.smoothing + extra, gates.need)
 
     def _best_first(self, aq: ArcQuery, gates: _Gates) -> CandidatePool:
