@@ -41,18 +41,18 @@ if __name__ == "__main__":  # timed single-threaded; a test importing this keeps
 import argparse  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
-import time  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from anywhere
 
+import _against_grid  # noqa: E402
 import numpy as np  # noqa: E402
-from _reference_search import reference_segment_path  # noqa: E402
+from _against_grid import compare, joined_cuts, print_joined  # noqa: E402
 from scipy.interpolate import CubicSpline  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from primlib.match import BankIndex, matched_pieces, segment_path  # noqa: E402
+from primlib.match import BankIndex, matched_pieces  # noqa: E402
 from primlib.store import Bank  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -180,12 +180,7 @@ def joined_queries(bank: BankIndex, count: int, level: float, seed: int) -> list
 
 def run(bank: BankIndex, q: Query, search: str):
     """(segments, seconds) of one search on one query."""
-    t0 = time.perf_counter()
-    if search == "index":
-        segs, _ = segment_path(bank, q.points, DT, q.eps)
-    else:
-        segs, _ = reference_segment_path(bank, q.points, DT, q.eps, search)
-    return segs, time.perf_counter() - t0
+    return _against_grid.run(bank, q.points, DT, q.eps, search)
 
 
 def answered(bank: BankIndex, q: Query, segs) -> bool:
@@ -194,21 +189,6 @@ def answered(bank: BankIndex, q: Query, segs) -> bool:
         return False
     piece = matched_pieces(segs, bank, n=q.clean.shape[0])[0]
     return float(np.sqrt(np.mean(np.sum((piece - q.clean) ** 2, axis=1)))) <= q.eps
-
-
-def compare(a, b, n: int) -> str:
-    """``a`` (index) against ``b`` (grid): "cuts" when they cut elsewhere, "worse" when a
-    segment names another primitive at an RMSD more than 1 % above the grid's, "better"
-    when more than 1 % below, else "same" (the bundled lines and quarter arcs at two speeds
-    hold the same pieces: either is the answer)."""
-    if [round(s.end * n) for s in a] != [round(s.end * n) for s in b]:
-        return "cuts"
-    worse = better = False
-    for x, y in zip(a, b, strict=True):
-        if x.primitive != y.primitive and x.primitive is not None and y.primitive is not None:
-            worse |= x.rmsd > 1.01 * y.rmsd
-            better |= x.rmsd < y.rmsd / 1.01
-    return "worse" if worse else "better" if better else "same"
 
 
 def single_table(bank: BankIndex, count: int, stored_noise: bool = False) -> dict:
@@ -242,34 +222,11 @@ def single_table(bank: BankIndex, count: int, stored_noise: bool = False) -> dic
 
 def junction_table(bank: BankIndex, count: int) -> dict:
     """Cut errors (samples) against the true joins, per search, and index against grid."""
-    print("\n| noise σ | search | paths cut in 3 | median |cut error| | worst | "
-          "index vs grid worst |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
     out = {}
     for j, level in enumerate(NOISE):
-        qs = joined_queries(bank, count, level, seed=20 + j)
-        errs: dict[str, list[int]] = {"grid": [], "index": []}
-        three = {"grid": 0, "index": 0}
-        vs = []
-        for q in qs:
-            n = len(q.points) - 1
-            cut = {}
-            for s in ("grid", "index"):
-                segs, _ = run(bank, q, s)
-                cut[s] = [round(x.end * n) for x in segs[:-1]]
-                if len(segs) == 3 and all(x.primitive is not None for x in segs):
-                    three[s] += 1
-                    errs[s] += [abs(c - t) for c, t in zip(cut[s], q.cuts[1:-1], strict=True)]
-            if len(cut["grid"]) == len(cut["index"]):
-                vs += [abs(a - b) for a, b in zip(cut["index"], cut["grid"], strict=True)]
-            else:
-                vs.append(n)  # a different number of cuts: as far off as can be
-        for s in ("grid", "index"):
-            e = errs[s] or [0]
-            w = str(max(vs)) if s == "index" else "-"
-            print(f"| {100 * level:g} % | {s} | {three[s]}/{count} | {statistics.median(e):g} | "
-                  f"{max(e)} | {w} |")  # fmt: skip
-        out[level] = {"three": three, "worst_vs_grid": max(vs)}
+        res = joined_cuts(bank, joined_queries(bank, count, level, seed=20 + j), DT)
+        print_joined(f"{100 * level:g} %", res, count, first="noise σ" if j == 0 else None)
+        out[level] = {"three": res["three"], "worst_vs_grid": res["worst_vs_grid"]}
     return out
 
 

@@ -39,17 +39,17 @@ if __name__ == "__main__":  # timed single-threaded; a test importing this keeps
 import argparse  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
-import time  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from anywhere
 
+import _against_grid  # noqa: E402
 import numpy as np  # noqa: E402
-from _reference_search import reference_segment_path  # noqa: E402
+from _against_grid import compare, joined_cuts, print_joined  # noqa: E402
 from scipy.interpolate import CubicSpline  # noqa: E402
 
-from primlib.match import BankIndex, segment_path  # noqa: E402
+from primlib.match import BankIndex  # noqa: E402
 from primlib.store import Bank  # noqa: E402
 
 DT = 0.005  # s: the library's and the queries' sample time
@@ -138,26 +138,7 @@ def joined_queries(demos, count: int, frac: float, seed: int) -> list[Query]:
 
 def run(bank: BankIndex, q: Query, search: str):
     """(segments, seconds) of one search on one query."""
-    t0 = time.perf_counter()
-    if search == "index":
-        segs, _ = segment_path(bank, q.points, DT, q.eps)
-    else:
-        segs, _ = reference_segment_path(bank, q.points, DT, q.eps, search)
-    return segs, time.perf_counter() - t0
-
-
-def compare(a, b, n: int) -> str:
-    """``a`` (index) against ``b`` (grid): "cuts" when they cut elsewhere, "worse" when a
-    segment names another primitive at an RMSD more than 1 % above the grid's, "better"
-    when more than 1 % below, else "same"."""
-    if [round(s.end * n) for s in a] != [round(s.end * n) for s in b]:
-        return "cuts"
-    worse = better = False
-    for x, y in zip(a, b, strict=True):
-        if x.primitive != y.primitive and x.primitive is not None and y.primitive is not None:
-            worse |= x.rmsd > 1.01 * y.rmsd
-            better |= x.rmsd < y.rmsd / 1.01
-    return "worse" if worse else "better" if better else "same"
+    return _against_grid.run(bank, q.points, DT, q.eps, search)
 
 
 def whole_table(bank: BankIndex, demos, count: int, fracs) -> dict:
@@ -189,35 +170,11 @@ def whole_table(bank: BankIndex, demos, count: int, fracs) -> dict:
 
 def junction_table(bank: BankIndex, demos, count: int, fracs) -> dict:
     """Cut errors (samples) against the true joins, per search, and index against grid."""
-    print("\n| eps / extent | search | paths cut in 3 | median |cut error| | worst | "
-          "index vs grid: paths that differ, worst |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
     out = {}
     for j, frac in enumerate(fracs):
-        qs = joined_queries(demos, count, frac, seed=40 + j)
-        errs: dict[str, list[int]] = {"grid": [], "index": []}
-        three = {"grid": 0, "index": 0}
-        vs, differ = [0], 0
-        for q in qs:
-            n = len(q.points) - 1
-            cut = {}
-            for s in ("grid", "index"):
-                segs, _ = run(bank, q, s)
-                cut[s] = [round(x.end * n) for x in segs[:-1]]
-                if len(segs) == 3 and all(x.primitive is not None for x in segs):
-                    three[s] += 1
-                    errs[s] += [abs(c - t) for c, t in zip(cut[s], q.cuts[1:-1], strict=True)]
-            differ += cut["grid"] != cut["index"]
-            if len(cut["grid"]) == len(cut["index"]):
-                vs += [abs(a - b) for a, b in zip(cut["index"], cut["grid"], strict=True)]
-            else:
-                vs.append(n)  # a different number of cuts: as far off as can be
-        for s in ("grid", "index"):
-            e = errs[s] or [0]
-            w = f"{differ}/{count}, {max(vs)}" if s == "index" else "-"
-            print(f"| {100 * frac:g} % | {s} | {three[s]}/{count} | {statistics.median(e):g} | "
-                  f"{max(e)} | {w} |")  # fmt: skip
-        out[frac] = {"three": three, "differ": differ, "worst_vs_grid": max(vs)}
+        res = joined_cuts(bank, joined_queries(demos, count, frac, seed=40 + j), DT)
+        print_joined(f"{100 * frac:g} %", res, count, first="eps / extent" if j == 0 else None)
+        out[frac] = {k: res[k] for k in ("three", "differ", "worst_vs_grid")}
     return out
 
 
