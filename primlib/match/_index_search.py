@@ -75,7 +75,7 @@ from primlib.match._grid import GridSearch
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import CandidatePool, best_and_ties, suppress
-from primlib.match._smooth import Smoothed, smooth_path, smooth_to, wiggly
+from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, wiggly
 
 __all__ = ["IndexSearch", "ArcQuery"]
 
@@ -141,7 +141,7 @@ class IndexSearch:
             sm = self.smoothed(path, eps)
             if wiggly(sm.path.points, a, b):
                 sm = self.smoothed(path, eps, wide=True)
-            path, smoothing = sm.path, sm.deviation(a, b)
+            path, a, b, smoothing = piece_view(sm, path, a, b, eps)
         n_dense = max(64, int(round((b - a) * (path.n - 1))) * 2 + 1)
         dense = path.at(np.linspace(a, b, n_dense))
         chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
