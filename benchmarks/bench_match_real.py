@@ -24,8 +24,11 @@ such queries at eps of 2-5 % of the extent, and whole demonstrations within eps 
 stored shape were cut into pieces of others in 1-6 %. Goal: the index answers as the grid
 does (it is a way to be fast, not a different matcher).
 
+With ``--turned``, the whole demonstrations again, each turned by a random angle and moved:
+the matcher works up to a proper rotation, so the answers should be the same.
+
 Run: ``python benchmarks/bench_match_real.py [--shapes 30] [--demos 6] [--joined 10]
-[--eps 2 3 5]``; exits with status 2 and says how to install the data when it is missing.
+[--eps 2 3 5] [--turned]``; exits with status 2 and says how to install the data when it is missing.
 """
 
 from __future__ import annotations
@@ -107,12 +110,19 @@ def _extent(p: np.ndarray) -> float:
     return float(np.ptp(p, axis=0).max())
 
 
-def whole_queries(demos, count: int, frac: float) -> list[Query]:
-    """Held-out demonstrations 2 .. count + 1 of every shape, eps = ``frac`` × extent."""
+def whole_queries(demos, count: int, frac: float, turn: bool = False) -> list[Query]:
+    """Held-out demonstrations 2 .. count + 1 of every shape, eps = ``frac`` × extent; with
+    ``turn`` each turned by a random angle and moved by ~50 mm (seeded)."""
+    rng = np.random.default_rng(5)
     out = []
     for i, name in enumerate(demos):
         for p in demos[name][1 : count + 1]:
-            out.append(Query(p, frac * _extent(p), i, (0, p.shape[0] - 1)))
+            eps = frac * _extent(p)  # as drawn: the extent along the axes is not invariant
+            if turn:
+                th = rng.uniform(0.0, 2.0 * np.pi)
+                c, s = np.cos(th), np.sin(th)
+                p = p @ np.array([[c, s], [-s, c]]) + rng.normal(size=2) * 50.0
+            out.append(Query(p, eps, i, (0, p.shape[0] - 1)))
     return out
 
 
@@ -141,14 +151,14 @@ def run(bank: BankIndex, q: Query, search: str):
     return _against_grid.run(bank, q.points, DT, q.eps, search)
 
 
-def whole_table(bank: BankIndex, demos, count: int, fracs) -> dict:
+def whole_table(bank: BankIndex, demos, count: int, fracs, turn: bool = False) -> dict:
     """Per eps: one-segment answers, disagreements and times (printed and returned)."""
     print("| eps / extent | search | one segment | its own shape | median s | worst s | "
           "other cuts / worse / better than the grid |")  # fmt: skip
     print("|---|---|---|---|---|---|---|")
     out = {}
     for frac in fracs:
-        qs = whole_queries(demos, count, frac)
+        qs = whole_queries(demos, count, frac, turn)
         res = {s: [run(bank, q, s) for q in qs] for s in ("grid", "index")}
         cmp = [compare(a[0], b[0], len(q.points) - 1)
                for q, a, b in zip(qs, res["index"], res["grid"], strict=True)]  # fmt: skip
@@ -185,6 +195,8 @@ def main() -> None:
     ap.add_argument("--joined", type=int, default=10, help="3-shape paths per eps")
     ap.add_argument("--eps", type=float, nargs="+", default=[2.0, 3.0, 5.0],
                     help="tolerances, % of the query's extent")  # fmt: skip
+    ap.add_argument("--turned", action="store_true",
+                    help="also the whole demonstrations turned and moved at random")  # fmt: skip
     args = ap.parse_args()
     try:
         demos = demonstrations(data_dir(), args.shapes)
@@ -198,6 +210,12 @@ def main() -> None:
           f"{bank.points.shape[0]} samples; held-out demonstrations as queries\n")  # fmt: skip
     if args.demos:
         whole_table(bank, demos, args.demos, fracs)
+    if args.demos and args.turned:
+        print(
+            "\nthe same demonstrations, each turned and moved (a proper rotation: the answer "
+            "is the same)"
+        )
+        whole_table(bank, demos, args.demos, fracs, turn=True)
     if args.joined:
         junction_table(bank, demos, args.joined, fracs)
     print(f"\nload average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

@@ -32,6 +32,9 @@ def test_whole_demonstrations_are_matched_as_the_grid_matches_them(capsys):
     res = bench.whole_table(bank, demos, 2, [0.05])[0.05]
     assert res["index"]["one"] == res["grid"]["one"] >= 4
     assert res["differ"]["cuts"] == 0
+    turned = bench.whole_table(bank, demos, 2, [0.05], turn=True)[0.05]
+    assert turned["index"] == {**res["index"], "median_s": turned["index"]["median_s"]}
+    assert turned["differ"]["cuts"] == 0
     joined = bench.junction_table(bank, demos, 2, [0.05])[0.05]
     assert joined["differ"] == 0 and joined["three"]["index"] == joined["three"]["grid"]
     assert "| 5 % | index |" in capsys.readouterr().out
