@@ -502,9 +502,9 @@ class ArcQuery:
         fractional level positions ``start`` (m,), linear between points, and whether each
         has ``need`` of arc left in its primitive (:attr:`._gates.Gates.need`).
 
-        A window may run past its primitive's last point by as much as the gates allow
-        (chords under-estimate arc): it then ends there, its points evenly spaced (the
-        points past it are another primitive's)."""
+        A window may run past its primitive's last point as far as the gates allow
+        (:func:`._gates.overrun`): it then ends there, its points evenly spaced (the points
+        past it are another primitive's)."""
         lv, k, top = self.level, self.k, self.level.pts.shape[0] - 1
         p0 = lv.prim[np.clip(np.floor(start).astype(np.int64), 0, top)]
         first = lv.start[p0]

@@ -1,10 +1,10 @@
 """Scores of arc windows given by their points, and the windows at a primitive's end.
 
 An index window (:mod:`._index_search`) is ``k`` points of a level, ``dil`` apart. The gates
-(:class:`._gates.Gates`) let a window run a little past its primitive's last point, since
-chord lengths under-estimate arc length (more for the stored samples than for the densely
-sampled query): a copy of the query may reach the primitive's very end while the query's
-arc, measured on its smoothed samples, is up to a step or 2 % longer. Such a window's last
+(:class:`._gates.Gates`) let a window run past its primitive's last point as far as
+:func:`._gates.overrun` allows: a copy of the query may reach the primitive's very end while
+the query's arc is longer (chords under-estimate arc, a noisy path smoothed keeps some of its
+noise's arc, hand-drawn copies of one shape differ in arc by 10-20 %). Such a window's last
 points belong to the next primitive. Scored from them it matched nothing: a whole noisy
 line, its smoothed arc 1–2 % longer than the stored line's, was found nowhere in the index
 while the exhaustive grid matched it (``benchmarks/bench_match_noisy.py``, joined paths at

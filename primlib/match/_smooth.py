@@ -18,7 +18,9 @@ length. The index therefore measures arc length on a smoothed copy S of the samp
   stored shape) the noise estimate barely sees: a piece whose arc on S is more than 3 %
   longer than along chords of 16 samples (:func:`wiggly`; a smooth curve turning by θ
   over a chord is only θ²/24 longer) is measured on Q smoothed to the target eps instead
-  (:func:`smooth_to`). A clean smooth path is never wiggly and is measured as it is.
+  (:func:`smooth_to`). A clean smooth path is never wiggly and is measured as it is;
+* a piece the whole path's smoothing moved by more than 1.5 times its bound (the rounded
+  corner of a join of two shapes) is smoothed alone (:func:`piece_view`).
 
 Every piece [a, b] knows its own RMS deviation δ (:meth:`Smoothed.deviation`, over the path
 samples in it, ≤ δ* over the whole path). For any rigid motion (R, t),
@@ -277,11 +279,12 @@ def piece_view(sm: Smoothed, path: PathPiece, a: float, b: float,
     piece's own samples smoothed alone (:func:`smooth_path`). Returns the path it lies on,
     a and b in that path's normalised time, and the piece's RMS deviation.
 
-    The whole path's width is set by its noise; the Gaussian rounds every corner it spans.
-    Where a piece holds the join of two shapes, the rounded corner shortened its arc and
-    bent its shape (deviation 6.8 against a bound of 2.2 on a noisy path of three random
-    primitives at 1 %): its copy in the library was left out of the pool, while the piece
-    alone, whose smoothing stops at its ends, was matched as the grid matches it. White
+    The whole path's width is set by its noise (or, for a wiggly piece, by eps); the
+    Gaussian rounds every corner it spans. Where a piece holds the join of two shapes, the
+    rounded corner shortened its arc and bent its shape (a noisy path of three random
+    primitives at 1 %: the copy smoothed to eps = 3.2, the piece being wiggly, moved it by
+    6.8 RMS): its copy in the library was left out of the pool, while the piece alone,
+    whose smoothing stops at its ends, was matched as the grid matches it. White
     noise moves a piece of k samples by δ* give or take 1/√(6k) of it (d = 3): 1.5 is
     3.5 standard deviations at k = 8.
     """
