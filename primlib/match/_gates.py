@@ -17,8 +17,10 @@ __all__ = ["Gates"]
 
 @dataclass(frozen=True)
 class Gates:
-    """Which windows of a query can hold a stored copy (``valid``: enough arc left in the
-    primitive) and each one's gate on the shape RMSD (:meth:`._index_search.IndexSearch.seeds`)."""
+    """Which windows of a query can hold a stored copy (``valid``: inside their primitive;
+    ``over``: running past its last point with ``need`` of arc left, scored apart by
+    :mod:`._ends`) and each one's gate on the shape RMSD
+    (:meth:`._index_search.IndexSearch.seeds`)."""
 
     gate: float
     stored: np.ndarray | None  # RMS deviation of each window's smoothed samples, or None
@@ -62,7 +64,8 @@ class Gates:
         return self.stored[np.minimum(ws, self.stored.size - 1)]
 
     def valid(self, ws: np.ndarray | tuple[int, int]) -> np.ndarray:
-        """Whether each window has ``need`` of arc left (a new array: callers narrow it)."""
+        """Whether each window lies inside its primitive (a new array: callers narrow it);
+        those with ``need`` of arc left that run past its end are :attr:`over`."""
         return self.fits[ws[0] : ws[1]].copy() if isinstance(ws, tuple) else self.fits[ws]
 
 
