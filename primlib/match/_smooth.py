@@ -122,9 +122,14 @@ class Smoothed:
         n = self.cum.size - 1
         if self.width == 0.0:
             return 0.0
-        i0 = min(max(int(math.floor(a * (n - 1) + 1e-9)), 0), n - 1)
-        i1 = min(max(int(math.ceil(b * (n - 1) - 1e-9)), i0), n - 1)
+        i0, i1 = _samples(n, a, b)
         return math.sqrt(max(self.cum[i1 + 1] - self.cum[i0], 0.0) / (i1 + 1 - i0))
+
+
+def _samples(n: int, a: float, b: float) -> tuple[int, int]:
+    """The first and last of n path samples in the piece [a, b] (normalised time)."""
+    i0 = min(max(int(math.floor(a * (n - 1) + 1e-9)), 0), n - 1)
+    return i0, min(max(int(math.ceil(b * (n - 1) - 1e-9)), i0), n - 1)
 
 
 def wiggly(points: np.ndarray, a: float, b: float) -> bool:
@@ -132,8 +137,7 @@ def wiggly(points: np.ndarray, a: float, b: float) -> bool:
     samples than along chords of ``_CHORD`` samples: wiggles shorter than a chord make its
     arc (a smooth curve turning by θ over a chord is only 1 − θ²/24 longer than it)."""
     n = points.shape[0]
-    i0 = min(max(int(math.floor(a * (n - 1) + 1e-9)), 0), n - 1)
-    i1 = min(max(int(math.ceil(b * (n - 1) - 1e-9)), i0), n - 1)
+    i0, i1 = _samples(n, a, b)
     if i1 - i0 < 4 * _CHORD:
         return False
     p = points[i0 : i1 + 1]
@@ -290,8 +294,7 @@ def piece_view(sm: Smoothed, path: PathPiece, a: float, b: float,
     """
     dev = sm.deviation(a, b)
     n = path.n
-    i0 = min(max(int(math.floor(a * (n - 1) + 1e-9)), 0), n - 1)
-    i1 = min(max(int(math.ceil(b * (n - 1) - 1e-9)), i0), n - 1)
+    i0, i1 = _samples(n, a, b)
     if sm.width == 0.0 or dev <= _CORNER * sm.target or i1 - i0 < 7:
         return sm.path, a, b, dev
     span = i1 - i0
