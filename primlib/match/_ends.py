@@ -49,15 +49,19 @@ def combine(aq: ArcQuery, shape: np.ndarray, xw: np.ndarray) -> np.ndarray:
 
 
 def score_points(
-    aq: ArcQuery, pts: np.ndarray, xw: np.ndarray, rotation: str
+    aq: ArcQuery, win: np.ndarray, xw: np.ndarray, rotation: str
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(combined score, shape RMSD) of windows given by their points (m, k, d) and sample
-    indices (m, k), float64."""
-    pc = pts - pts.mean(axis=1, keepdims=True)
-    s_ = np.einsum("mka,kb->mab", pc, aq.qc)
-    sp_ = (pc * pc).sum(axis=1) if aq.per_axis else (pc * pc).sum(axis=(1, 2))
-    sq_ = np.broadcast_to(aq.sq, (pts.shape[0], 3)) if aq.per_axis else aq.sq
-    shape = rmsd_from_moments(s_, sp_, sq_, aq.k, rotation)
+    """(combined score, shape RMSD) of windows given by their points ``win`` (m, d, k),
+    centred in place, and sample indices ``xw`` (m, k), float64: one matrix product for
+    all cross-covariances (no centring needed for them: Σ q̃ = 0)."""
+    k, d = aq.k, aq.qc.shape[1]
+    s_ = (win.reshape(-1, k) @ aq.qc).reshape(win.shape[0], d, d)
+    win -= win.mean(axis=2, keepdims=True)  # centred in place, once s_ is formed
+    sp = np.einsum("mak,mak->ma", win, win)
+    if not aq.per_axis:
+        sp = sp.sum(axis=1)
+    sq_ = np.broadcast_to(aq.sq, (win.shape[0], 3)) if aq.per_axis else aq.sq
+    shape = rmsd_from_moments(s_, sp, sq_, k, rotation)
     return combine(aq, shape, xw), shape
 
 
@@ -71,7 +75,7 @@ def offer_overrun(search: IndexSearch, aq: ArcQuery, gates: Gates, pool: Candida
     if ws.size == 0:
         return
     pts, xw, ok = aq.at_starts(ws.astype(float), gates.need)
-    r, shape = score_points(aq, pts, xw, search.opts.rotation)
+    r, shape = score_points(aq, pts.transpose(0, 2, 1), xw, search.opts.rotation)
     search.stats.scored += ws.size
     ok &= shape < gates.at(ws)
     pool.offer_arrays(r[ok], lv.prim[ws[ok]], lv.x[ws[ok]], x_end[ok], ws[ok])

@@ -69,10 +69,9 @@ from primlib.match._bounds import (
     speed_screen,
 )
 from primlib.match._cone import not_in as _not_in
-from primlib.match._ends import combine, offer_overrun, score_points
+from primlib.match._ends import offer_overrun, score_points
 from primlib.match._gates import Gates as _Gates
 from primlib.match._grid import GridSearch
-from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import CandidatePool, best_and_ties, suppress
 from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, wiggly
@@ -268,24 +267,10 @@ class IndexSearch:
         return (scale >= lo / 1.1) & (scale <= hi * 1.1)
 
     def score(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Exact (combined score, shape RMSD) of the windows starting at ``ws``, float64.
-
-        One matrix product for all cross-covariances of the gathered windows (m, d, k); no
-        window centring is needed since Σ q̃ = 0.
-        """
-        k, span, dil = aq.k, aq.span, aq.dil
-        pts_w, x_w = aq.index.window_views(aq.jb, span, dil)
-        win = pts_w[ws]  # a copy
-        d = aq.qc.shape[1]
-        s_ = (win.reshape(-1, k) @ aq.qc).reshape(ws.size, d, d)
-        win -= win.mean(axis=2, keepdims=True)  # centred in place, once s_ is formed
-        sp = np.einsum("mak,mak->ma", win, win)
-        if not aq.per_axis:
-            sp = sp.sum(axis=1)
-        sq_ = np.broadcast_to(aq.sq, (ws.size, 3)) if aq.per_axis else aq.sq
-        shape = rmsd_from_moments(s_, sp, sq_, k, self.opts.rotation)
-        xw = x_w[ws]
-        return combine(aq, shape, xw), shape
+        """Exact (combined score, shape RMSD) of the windows starting at ``ws``, float64
+        (:func:`._ends.score_points` of the gathered windows, (m, d, k))."""
+        pts_w, x_w = aq.index.window_views(aq.jb, aq.span, aq.dil)
+        return score_points(aq, pts_w[ws], x_w[ws], self.opts.rotation)  # pts_w[ws]: a copy
 
     def score_shifted(self, aq: ArcQuery, start: np.ndarray,
                       need: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
@@ -293,7 +278,8 @@ class IndexSearch:
         (:meth:`._arc_index.ArcQuery.at_starts`) and their start sample index; +inf where
         one has less than ``need`` of arc left in its primitive."""
         pts, xw, ok = aq.at_starts(start, need)
-        return np.where(ok, score_points(aq, pts, xw, self.opts.rotation)[0], np.inf), xw[:, 0]
+        r = score_points(aq, pts.transpose(0, 2, 1), xw, self.opts.rotation)[0]
+        return np.where(ok, r, np.inf), xw[:, 0]
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
         """Best distinct arc-window candidates below the gate 3·(eps + δ) + Δ/2, best first
