@@ -3,7 +3,10 @@
     python benchmarks/bench_realism.py [--paths 3] [--trials 6] [--settings all] [--quick]
 
 (``--settings``: comma-separated names; "all", the default, is every setting, "all together"
-the setting with every departure at once.)
+the setting with every departure at once. ``--save-libraries DIR`` keeps each setting's
+learned library, and where its primitives ran, in DIR; ``--reuse-libraries DIR`` then runs
+the new paths on them without learning them again (5-7 minutes a setting) -- the same
+figures to the bit -- for working on the warm start of a library that stays.)
 
 The machine that runs the inputs is the warm-start benchmark's "true" XYZ machine
 (benchmarks/bench_warm_start.py: +8 % gain, +15 % time constant, a 12 ms lag per axis,
@@ -59,8 +62,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
+import shutil
 import statistics
 import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -265,18 +271,23 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
     steady = {k: v for k, v in SETTINGS[name].items() if k not in ("noise", "disturbance")}
     calm = realistic(nominal, steady, seed)
     t0 = time.perf_counter()
-    with Library() as lib:
-        lib.add_machine(nominal)
-        placed = learn_library(
-            lib,
-            true,
-            nominal,
-            rng,
-            args.library_trials,
-            args.primitives,
-            calm=calm,
-            first=args.library_start,
-        )
+    with tempfile.TemporaryDirectory() as tmp, Library(_library_file(args, name, seed, tmp)) as lib:
+        if args.reuse_libraries:
+            placed = _load_placed(args, name, seed, rng)
+        else:
+            lib.add_machine(nominal)
+            placed = learn_library(
+                lib,
+                true,
+                nominal,
+                rng,
+                args.library_trials,
+                args.primitives,
+                calm=calm,
+                first=args.library_start,
+            )
+            if args.save_libraries:
+                _save_placed(args, name, seed, placed, rng)
         t_lib = time.perf_counter() - t0
         rows: dict[str, list] = {k: [] for k in KINDS}
         for kind, paths in new_paths(placed, rng, args.paths, nominal.dt).items():
@@ -314,7 +325,75 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
                     }
                 )
     known = [(p["final"], p["worth"]) for p in placed if p["worth"] is not None]
-    return {"setting": name, "library_s": t_lib, "rows": rows, "stored_error": known}
+    return {
+        "setting": name,
+        "library_s": t_lib,
+        "reused": bool(args.reuse_libraries),
+        "rows": rows,
+        "stored_error": known,
+    }
+
+
+def _kept(folder: Path, name: str, seed: int) -> tuple[Path, Path]:
+    """Where ``--save-libraries`` keeps a setting's library: (DuckDB file, placements)."""
+    stem = f"{re.sub(r'[^a-z0-9]+', '-', name.lower()).strip('-')}-seed{seed}"
+    return folder / f"{stem}.duckdb", folder / f"{stem}.json"
+
+
+def _library_file(args, name: str, seed: int, tmp: str) -> str | None:
+    """The library of a run: in memory; the kept file (``--save-libraries``, written
+    afresh); or a copy of the kept one (``--reuse-libraries``: the path phase leaves the
+    kept file as it was)."""
+    if args.save_libraries:
+        db, _ = _kept(args.save_libraries, name, seed)
+        args.save_libraries.mkdir(parents=True, exist_ok=True)
+        db.unlink(missing_ok=True)
+        return str(db)
+    if args.reuse_libraries:
+        db, info = _kept(args.reuse_libraries, name, seed)
+        if not (db.is_file() and info.is_file()):
+            raise SystemExit(
+                f"--reuse-libraries: no library of setting {name!r} at seed {seed} in "
+                f"{args.reuse_libraries} (expected {db.name} and {info.name}; "
+                f"--save-libraries keeps them)"
+            )
+        shutil.copy(db, Path(tmp) / db.name)
+        return str(Path(tmp) / db.name)
+    return None
+
+
+def _learning(args) -> dict:
+    """The options that decide a learned library (a kept one is reused only under them)."""
+    return {
+        "primitives": args.primitives,
+        "library_trials": args.library_trials,
+        "library_start": args.library_start,
+    }
+
+
+def _save_placed(args, name: str, seed: int, placed: list[dict], rng) -> None:
+    """Where each primitive ran and what it is worth, and the random state the new paths
+    are drawn from, beside the kept library."""
+    rows = [
+        {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in p.items()} for p in placed
+    ]
+    doc = {"learning": _learning(args), "placed": rows, "rng": rng.bit_generator.state}
+    _kept(args.save_libraries, name, seed)[1].write_text(json.dumps(doc, default=float))
+
+
+def _load_placed(args, name: str, seed: int, rng) -> list[dict]:
+    """The placements :func:`_save_placed` kept; ``rng`` set to the state they left."""
+    doc = json.loads(_kept(args.reuse_libraries, name, seed)[1].read_text())
+    if doc["learning"] != _learning(args):
+        raise SystemExit(
+            f"--reuse-libraries: the library of setting {name!r} was learned with "
+            f"{doc['learning']}, this run asks {_learning(args)}"
+        )
+    rng.bit_generator.state = doc["rng"]
+    return [
+        {k: (np.asarray(v) if k in ("points", "origin") else v) for k, v in p.items()}
+        for p in doc["placed"]
+    ]
 
 
 def _setting_names(arg: str) -> list[str]:
@@ -456,6 +535,21 @@ def main(argv: list[str] | None = None) -> dict:
         help="each primitive's first input: the library's warm start as it stands "
         "(primlib trials start's default), or the nominal inverse (an empty library)",
     )
+    keep = ap.add_mutually_exclusive_group()
+    keep.add_argument(
+        "--save-libraries",
+        type=Path,
+        metavar="DIR",
+        help="keep each setting's learned library there (a DuckDB file, and where its "
+        "primitives ran), for --reuse-libraries",
+    )
+    keep.add_argument(
+        "--reuse-libraries",
+        type=Path,
+        metavar="DIR",
+        help="run the new paths on the libraries --save-libraries kept there (the same "
+        "settings, seed and learning options), not learning them again",
+    )
     ap.add_argument("--quick", action="store_true", help="1 path per kind, 3 trials")
     ap.add_argument("--json", type=Path, help="write the figures here")
     args = ap.parse_args(argv)
@@ -468,7 +562,8 @@ def main(argv: list[str] | None = None) -> dict:
     for name in names:
         res = run_setting(name, nominal, args, args.seed)
         lines, bad = summarise(res)
-        print(f"{name} (library learned in {res['library_s']:.1f} s)")
+        how = "reused" if res["reused"] else f"learned in {res['library_s']:.1f} s"
+        print(f"{name} (library {how})")
         if res["stored_error"]:
             ratio = [w / max(f, 1e-12) for f, w in res["stored_error"]]
             print(

@@ -3,6 +3,7 @@ its figures mean what they say (the full study is the benchmark's, not the suite
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -79,3 +80,29 @@ def test_a_trials_check_the_bound_cannot_meet_says_so():
     assert "needs 2" in bench_realism._unreachable_trials(rows, 1.0)
     assert bench_realism._unreachable_trials(rows, 2.0) == ""
     assert bench_realism._unreachable_trials([{"bound": None}], 1.0) == ""
+
+
+@pytest.mark.slow
+def test_a_kept_library_gives_the_same_figures_and_is_left_as_it_was(tmp_path):
+    import hashlib
+
+    args = ["--settings", "friction 2 %", "--paths", "1", "--trials", "2", "--library-trials",
+            "2", "--primitives", "2"]  # fmt: skip
+    first = bench_realism.main([*args, "--save-libraries", str(tmp_path)])
+    db = tmp_path / "friction-2-seed0.duckdb"
+    assert db.is_file() and (tmp_path / "friction-2-seed0.json").is_file()
+    digest = hashlib.sha256(db.read_bytes()).hexdigest()
+    again = bench_realism.main([*args, "--reuse-libraries", str(tmp_path)])
+    # the new paths are drawn from the state the learning left and run on the same
+    # library: the same figures to the bit, and the kept file untouched
+    (a,), (b,) = first["results"], again["results"]
+    assert b["reused"] and not a["reused"]
+    assert json.dumps(a["rows"], default=float) == json.dumps(b["rows"], default=float)
+    assert a["stored_error"] == b["stored_error"]
+    assert hashlib.sha256(db.read_bytes()).hexdigest() == digest
+    # another setting, or other learning options: said, not silently learned or mixed
+    with pytest.raises(SystemExit, match="no library of setting 'ripple 2 %'"):
+        bench_realism.main([*args[2:], "--settings", "ripple 2 %", "--reuse-libraries",
+                            str(tmp_path)])  # fmt: skip
+    with pytest.raises(SystemExit, match="was learned with"):
+        bench_realism.main([*args[:-1], "3", "--reuse-libraries", str(tmp_path)])
