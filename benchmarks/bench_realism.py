@@ -345,8 +345,11 @@ def _library_file(args, name: str, seed: int, tmp: str) -> str | None:
     afresh); or a copy of the kept one (``--reuse-libraries``: the path phase leaves the
     kept file as it was)."""
     if args.save_libraries:
-        db, _ = _kept(args.save_libraries, name, seed)
+        db, info = _kept(args.save_libraries, name, seed)
         args.save_libraries.mkdir(parents=True, exist_ok=True)
+        # both go: a learning that stops half-way must not leave a new library beside the
+        # placements of an old one (the placements are written last)
+        info.unlink(missing_ok=True)
         db.unlink(missing_ok=True)
         return str(db)
     if args.reuse_libraries:

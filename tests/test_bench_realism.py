@@ -106,3 +106,18 @@ def test_a_kept_library_gives_the_same_figures_and_is_left_as_it_was(tmp_path):
                             str(tmp_path)])  # fmt: skip
     with pytest.raises(SystemExit, match="was learned with"):
         bench_realism.main([*args[:-1], "3", "--reuse-libraries", str(tmp_path)])
+
+
+def test_a_learning_that_stops_half_way_leaves_no_old_placements_beside_it(tmp_path, monkeypatch):
+    info = tmp_path / "friction-2-seed0.json"
+    info.write_text("{}")  # an earlier run's
+
+    def stops(*args, **kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bench_realism, "learn_library", stops)
+    with pytest.raises(KeyboardInterrupt):
+        bench_realism.main(["--settings", "friction 2 %", "--save-libraries", str(tmp_path)])
+    assert not info.exists()
+    with pytest.raises(SystemExit, match="no library of setting"):
+        bench_realism.main(["--settings", "friction 2 %", "--reuse-libraries", str(tmp_path)])
