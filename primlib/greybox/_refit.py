@@ -300,9 +300,9 @@ def _run_jacobian(ax: _Axis, p: np.ndarray, r: np.ndarray) -> np.ndarray:
     three, with the fast time constant 7e-4 and the Coulomb level 4.5e-5 off the
     machine's, and the real run's error 60x what the machine's own parameters leave. The
     real run's error is piecewise smooth in the parameters (a stick moves by a substep at
-    a threshold), and over 1e-5 of a parameter it is smooth enough: from there one or two
-    steps of these differences reached the machine's parameters to 3e-7 (scratch, the same
-    library; steps of 1e-6 to 1e-3 did alike)."""
+    a threshold), and over 1e-5 of a parameter it is smooth enough: from there these steps
+    reach the machine's parameters to 7e-7 (plain Gauss-Newton steps in scratch, to 3e-7 in
+    one or two; differences of 1e-6 to 1e-3 did alike)."""
     k = ax.n_plant
     cols = []
     for j in np.flatnonzero(ax.free):
