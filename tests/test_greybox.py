@@ -376,3 +376,33 @@ def test_friction_hidden_by_a_larger_ripple_is_found_beside_it():
         assert np.hypot(c["ripple_sin"], c["ripple_cos"]) == pytest.approx(amp, rel=0.01)
         assert gb.w[i] == pytest.approx(2 * np.pi / pitch, rel=1e-3)
         assert gb.cv_rms[i] < 1e-3  # mm: the model is the machine's family
+
+
+def test_a_pair_where_an_axis_rests_throughout_does_not_bend_its_fit():
+    # Coulomb friction 0.3 and a ripple of 0.2 (pitch 5 mm) on every axis; six stored pairs
+    # at random places, in two of which y rests throughout (the static friction holds the
+    # ripple there, so the stored input says nothing of it). Fitted with those two, the
+    # ripple columns' constant values at the two places ran through the model's integrator
+    # as ramps: y got no ripple and a Coulomb level of -0.80 (held-out error 0.073 mm).
+    # Left out of y's fit, y is found like x and z; the pairs stay in x's and z's.
+    fc, amp, pitch = 0.3, 0.2, 5.0
+    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    rm = RealisticMachine.from_machine(xyz, coulomb=fc, ripple=amp, ripple_pitch=pitch)
+    lin = rm.nominal()
+    rng = np.random.default_rng(0)
+    pairs = []
+    for k in range(6):
+        path = _smooth_path(500 + 50 * k, rng, 1 if k in (1, 4) else None)
+        origin = rng.uniform(0, 60, 3)
+        u = invert(lin, path)
+        pairs.append(Pair(u, rm.simulate(u, start=origin), origin))
+    assert np.all(pairs[1].y[:, 1] == 0.0) and np.all(pairs[4].y[:, 1] == 0.0)
+    gb = fit_greybox(lin, pairs)
+    c = dict(zip(TERMS, gb.coef[1], strict=True))
+    assert c["coulomb"] + c["stribeck"] == pytest.approx(fc, rel=0.05)
+    assert np.hypot(c["ripple_sin"], c["ripple_cos"]) == pytest.approx(amp, rel=0.01)
+    assert gb.w[1] == pytest.approx(2 * np.pi / pitch, rel=1e-3)
+    assert gb.cv_rms[1] < 1e-3  # mm
+    # the model-only input leaves a resting axis at rest as the stored input did
+    assert gb.cv_pairs[[1, 4], 1].tolist() == [0.0, 0.0]
+    assert np.all(gb.cv_pairs[[0, 2, 3, 5], 1] > 0.0)
