@@ -351,6 +351,24 @@ def test_an_axis_that_moved_one_way_gets_no_bias_and_says_why():
     assert abs(c["coulomb"] + c["stribeck"] - fc) < 0.01 * fc
 
 
+def _friction_ripple_pairs(fc: float, amp: float, pitch: float, count: int, still=()):
+    """The xyz machine's linear part and ``count`` stored pairs of it with Coulomb friction
+    ``fc`` and a ripple ``amp`` of ``pitch`` mm on every axis, at random places: the linear
+    inverse's input and what the machine did with it (no noise); y rests through the pairs
+    numbered in ``still``."""
+    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    rm = RealisticMachine.from_machine(xyz, coulomb=fc, ripple=amp, ripple_pitch=pitch)
+    lin = rm.nominal()
+    rng = np.random.default_rng(0)
+    pairs = []
+    for k in range(count):
+        path = _smooth_path(500 + 50 * k, rng, 1 if k in still else None)
+        origin = rng.uniform(0, 60, 3)
+        u = invert(lin, path)
+        pairs.append(Pair(u, rm.simulate(u, start=origin), origin))
+    return lin, pairs
+
+
 def test_friction_hidden_by_a_larger_ripple_is_found_beside_it():
     # Coulomb friction 0.05 under a ripple of 0.5 (pitch 5 mm) on every axis, five stored
     # pairs at random places (the linear inverse's input and what the machine did with it,
@@ -359,16 +377,7 @@ def test_friction_hidden_by_a_larger_ripple_is_found_beside_it():
     # models kept the ripple without friction on two axes (held-out error 0.054 and 0.064 mm,
     # the ripple's pitch 0.2 % and 1.1 % off). Judged together, both are found on every axis.
     fc, amp, pitch = 0.05, 0.5, 5.0
-    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
-    rm = RealisticMachine.from_machine(xyz, coulomb=fc, ripple=amp, ripple_pitch=pitch)
-    lin = rm.nominal()
-    rng = np.random.default_rng(0)
-    pairs = []
-    for k in range(5):
-        path = _smooth_path(500 + 50 * k, rng, None)
-        origin = rng.uniform(0, 60, 3)
-        u = invert(lin, path)
-        pairs.append(Pair(u, rm.simulate(u, start=origin), origin))
+    lin, pairs = _friction_ripple_pairs(fc, amp, pitch, 5)
     gb = fit_greybox(lin, pairs)
     for i in range(3):
         c = dict(zip(TERMS, gb.coef[i], strict=True))
@@ -386,16 +395,7 @@ def test_a_pair_where_an_axis_rests_throughout_does_not_bend_its_fit():
     # as ramps: y got no ripple and a Coulomb level of -0.80 (held-out error 0.073 mm).
     # Left out of y's fit, y is found like x and z; the pairs stay in x's and z's.
     fc, amp, pitch = 0.3, 0.2, 5.0
-    xyz = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
-    rm = RealisticMachine.from_machine(xyz, coulomb=fc, ripple=amp, ripple_pitch=pitch)
-    lin = rm.nominal()
-    rng = np.random.default_rng(0)
-    pairs = []
-    for k in range(6):
-        path = _smooth_path(500 + 50 * k, rng, 1 if k in (1, 4) else None)
-        origin = rng.uniform(0, 60, 3)
-        u = invert(lin, path)
-        pairs.append(Pair(u, rm.simulate(u, start=origin), origin))
+    lin, pairs = _friction_ripple_pairs(fc, amp, pitch, 6, still=(1, 4))
     assert np.all(pairs[1].y[:, 1] == 0.0) and np.all(pairs[4].y[:, 1] == 0.0)
     gb = fit_greybox(lin, pairs)
     c = dict(zip(TERMS, gb.coef[1], strict=True))
