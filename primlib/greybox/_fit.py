@@ -253,7 +253,7 @@ def _pairs_of(row: dict, keep: np.ndarray) -> tuple[dict, np.ndarray]:
     """
     starts = row["starts"]
     sizes = np.diff(starts)[keep]
-    take = np.concatenate([np.arange(starts[j], starts[j + 1]) for j in np.flatnonzero(keep)])
+    take = np.flatnonzero(np.repeat(keep, np.diff(starts)))
     out = {k: row[k][take] for k in ("F", "r", "pos", "step", "gap")}
     out.update(folds=_folds(sizes), starts=np.concatenate([[0], np.cumsum(sizes)]), tf=row["tf"])
     return out, take
