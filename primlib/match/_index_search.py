@@ -74,6 +74,7 @@ from primlib.match._gates import Gates as _Gates
 from primlib.match._grid import GridSearch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import CandidatePool, best_and_ties, suppress
+from primlib.match._rescan import rescan
 from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, wiggly
 
 __all__ = ["IndexSearch", "ArcQuery"]
@@ -313,7 +314,10 @@ class IndexSearch:
         if pool.keys.size == 0:
             return []
         extra = 0.0 if gates.stored is None else float(gates.deviation(pool.keys).max())
-        return self._reshift(aq, pool, eps + aq.smoothing + extra, gates.need)
+        seeds = self._reshift(aq, pool, eps + aq.smoothing + extra, gates.need)
+        # the best few placed on uniform time (:mod:`._rescan`); the rest are near ties
+        top = 2 * self.opts.seeds
+        return rescan(self.bank, seeds[:top], path, a, b, self.opts) + seeds[top:]
 
     def _best_first(self, aq: ArcQuery, gates: _Gates) -> CandidatePool:
         """Score windows best-first in order of lower bounds until none left can enter the
