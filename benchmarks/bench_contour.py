@@ -15,6 +15,7 @@ fraction of the path extent. Goals: difference <= 1e-6 of the extent, ratio >= 1
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -45,6 +46,7 @@ def _path() -> Trajectory:
 
 
 def main() -> int:
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()
     path = _path()
     rng = np.random.default_rng(0)
     T = path.duration

@@ -23,6 +23,7 @@ checkout. ``--quick`` runs the first case on a 4 s record (the suite's smoke tes
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -159,8 +160,9 @@ def _report(case: dict, out: dict) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    quick = "--quick" in argv
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="the first case on a 4 s record only")
+    quick = ap.parse_args(argv).quick
     cases = _cases()[:1] if quick else _cases()
     ok = True
     for case in cases:

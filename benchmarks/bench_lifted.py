@@ -17,6 +17,7 @@ Run: ``python benchmarks/bench_lifted.py`` (single-threaded BLAS for a fair comp
 
 from __future__ import annotations
 
+import argparse
 import os
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -38,6 +39,7 @@ from primlib.reproduce import contour_reference, paper_machine  # noqa: E402
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()
     machine = paper_machine()
     r = contour_reference("semicircle")
     r = r - r[0]

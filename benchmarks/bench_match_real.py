@@ -194,7 +194,7 @@ def main() -> None:
     ap.add_argument("--demos", type=int, default=6, help="held-out demonstrations per shape")
     ap.add_argument("--joined", type=int, default=10, help="3-shape paths per eps")
     ap.add_argument("--eps", type=float, nargs="+", default=[2.0, 3.0, 5.0],
-                    help="tolerances, % of the query's extent")  # fmt: skip
+                    help="tolerances, %% of the query's extent")  # fmt: skip
     ap.add_argument("--turned", action="store_true",
                     help="also the whole demonstrations turned and moved at random")  # fmt: skip
     args = ap.parse_args()

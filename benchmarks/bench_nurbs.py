@@ -18,6 +18,7 @@ every fast path is checked against the slow one before it is timed:
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import sys
 import tempfile
@@ -144,6 +145,7 @@ def bench_csv() -> list[tuple]:
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()
     fit_rows, tr = bench_fit()
     rows = fit_rows
     rows += bench_evaluation(tr, f"m={tr.n_ctrlpts}")
