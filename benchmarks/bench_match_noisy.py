@@ -19,6 +19,10 @@ within eps of one stored shape, which must come out as one segment, as from the 
 With ``--stored-noise``, the same queries against the library with white noise of the same
 level on every stored primitive (noise in a stored path must not change the answer either).
 
+With ``--unmatched``, the same single queries at a quarter of their eps (σ·√d / 2, half
+what the noise alone leaves): nothing is within it, so a path comes out unmatched or in short
+pieces; the time of that against the same query's time at its eps.
+
 Junctions: paths joined from 3 stored pieces (rotated, time-scaled, noise as above); the cut
 errors in samples of each search against the true joins, and the index's cuts against the
 grid's.
@@ -27,7 +31,7 @@ Goal (issue 13): >= 59 of 60 answered at each noise level, as the grid; index cu
 grid cuts.
 
 Run: ``python benchmarks/bench_match_noisy.py [--queries 60] [--joined 10] [--big]
-[--stored-noise] [--deformed 14]``.
+[--stored-noise] [--deformed 14] [--unmatched]``.
 """
 
 from __future__ import annotations
@@ -191,16 +195,22 @@ def answered(bank: BankIndex, q: Query, segs) -> bool:
     return float(np.sqrt(np.mean(np.sum((piece - q.clean) ** 2, axis=1)))) <= q.eps
 
 
+def _levels(bank: BankIndex, count: int, head: tuple[str, ...]):
+    """A table's header printed, then each noise level with its single queries."""
+    print("| " + " | ".join(head) + " |")
+    print("|---" * len(head) + "|")
+    for j, level in enumerate(NOISE):
+        yield level, single_queries(bank, count, level, seed=10 + j)
+
+
 def single_table(bank: BankIndex, count: int, stored_noise: bool = False) -> dict:
     """Answered, times and disagreements per noise level and search (printed); with
     ``stored_noise`` the searched library has noise of the same level (:func:`noisy_library`)
     and the queries are drawn from ``bank``."""
-    print("| noise σ | search | answered | median s | worst s | median ratio | "
-          "other cuts / worse / better primitive than the grid |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|")
     out = {}
-    for j, level in enumerate(NOISE):
-        qs = single_queries(bank, count, level, seed=10 + j)
+    head = ("noise σ", "search", "answered", "median s", "worst s", "median ratio",
+            "other cuts / worse / better primitive than the grid")  # fmt: skip
+    for j, (level, qs) in enumerate(_levels(bank, count, head)):
         lib = noisy_library(bank, level, seed=30 + j) if stored_noise else bank
         res = {s: [run(lib, q, s) for q in qs] for s in ("grid", "index")}
         ok = {s: sum(answered(lib, q, r[0]) for q, r in zip(qs, res[s], strict=True))
@@ -217,6 +227,35 @@ def single_table(bank: BankIndex, count: int, stored_noise: bool = False) -> dic
             print(f"| {100 * level:g} % | {s} | {ok[s]}/{count} | {statistics.median(t):.3f} | "
                   f"{max(t):.3f} | {rr} | {dd} |")  # fmt: skip
         out[level] = {"answered": ok, "differ": diff, "ratio": ratio}
+    return out
+
+
+def unmatched_table(bank: BankIndex, count: int) -> dict:
+    """The queries of :func:`single_table` at a quarter of their eps (σ·√d / 2, half the
+    RMSD of the noise alone: no stored piece can be within it, the path must come out
+    unmatched or in short pieces): per search the matched fraction, the segments and the
+    time, and the index's time over its own on the same queries at their eps (issue 13: a
+    path that does not match must cost about what one that matches does)."""
+    out = {}
+    print()
+    head = ("noise σ", "search", "matched, median (worst)", "segments, median", "median s",
+            "worst s", "time / the same query matched, median (worst)")  # fmt: skip
+    for level, qs in _levels(bank, count, head):
+        hit = [run(bank, q, "index") for q in qs]
+        low = [Query(q.points, q.clean, q.eps / 4.0, q.row, q.cuts) for q in qs]
+        res = {s: [run(bank, q, s) for q in low] for s in ("grid", "index")}
+        ratio = [r[1] / h[1] for r, h in zip(res["index"], hit, strict=True)]
+        out[level] = {"ratio": statistics.median(ratio), "worst_ratio": max(ratio)}
+        for s in ("grid", "index"):
+            frac = [sum(x.end - x.start for x in r[0] if x.primitive is not None)
+                    for r in res[s]]  # fmt: skip
+            t = [r[1] for r in res[s]]
+            segs = statistics.median(len(r[0]) for r in res[s])
+            rr = f"{statistics.median(ratio):.2f} ({max(ratio):.2f})" if s == "index" else "-"
+            print(f"| {100 * level:g} % | {s} | {100 * statistics.median(frac):.0f} % "
+                  f"({100 * max(frac):.0f} %) | {segs:g} | {statistics.median(t):.3f} | "
+                  f"{max(t):.3f} | {rr} |")  # fmt: skip
+            out[level][s] = {"matched": statistics.median(frac), "median_s": statistics.median(t)}
     return out
 
 
@@ -259,6 +298,8 @@ def main() -> None:
     ap.add_argument("--big", action="store_true", help="also 1,000 random primitives")
     ap.add_argument("--stored-noise", action="store_true", help="also a noisy library")
     ap.add_argument("--deformed", type=int, default=0, help="smoothly bent pieces per case")
+    ap.add_argument("--unmatched", action="store_true",
+                    help="also the queries at a quarter of eps (nothing matches)")  # fmt: skip
     args = ap.parse_args()
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     kinds = ["bundled", "random-1000"] if args.big else ["bundled"]
@@ -270,6 +311,8 @@ def main() -> None:
         if args.queries and args.stored_noise:
             print("\nthe same queries against the library with noise of the same level")
             single_table(bank, args.queries, stored_noise=True)
+        if args.queries and args.unmatched:
+            unmatched_table(bank, args.queries)
         if args.joined:
             junction_table(bank, args.joined)
         if args.deformed:

@@ -29,3 +29,15 @@ def test_junctions_are_reported_against_the_grid(capsys):
     res = bench.junction_table(bench.library("bundled"), 1)
     assert set(res) == set(bench.NOISE)
     assert "| 0.1 % | grid |" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_queries_below_their_noise_come_out_unmatched_at_about_a_match_s_cost(capsys):
+    # eps a quarter of the matched one: half the noise's own RMSD, so no stored piece is
+    # within it; the path is mostly unmatched, by both searches
+    bench = _bench()
+    res = bench.unmatched_table(bench.library("bundled"), 3)
+    for level in bench.NOISE:
+        assert res[level]["index"]["matched"] < 0.5 and res[level]["grid"]["matched"] < 0.5
+        assert res[level]["ratio"] > 0
+    assert "| 1 % | index |" in capsys.readouterr().out
