@@ -1,4 +1,4 @@
-"""Each index seed moved to the best window near it on the time-uniform grid's own score.
+"""The index's best seeds moved to the best window near each on the time-uniform grid's score.
 
 The arc-length index places a seed by its shape (:mod:`._arc_index`); a match is judged on
 uniform-time samples (the RMSD of the path's samples against the stored piece at one time
@@ -104,8 +104,8 @@ def _pruned_rmsd(cross: np.ndarray, sp: np.ndarray, sq, k: int, rotation: str) -
     """Kabsch RMSD of every window (seeds, scales, shifts) from its moments, inf where the
     radius-of-gyration bound (:func:`._bounds.gyration_bound`) is at or above the seed's own
     window's RMSD: such a window cannot be the seed's best (its own is always a candidate).
-    That leaves 5-16 % of the windows to the eigenvalue (novel paths of
-    ``bench_match_novel.py``, 1,000 and the bundled primitives)."""
+    That left 5-16 % of the windows to the eigenvalue on the novel paths of
+    ``bench_match_novel.py`` (1,000 and the bundled primitives, every seed scanned)."""
     seeds, scales, shifts = cross.shape[:3]
     own = (slice(None), scales // 2, SHIFTS)
 
