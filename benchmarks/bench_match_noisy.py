@@ -231,11 +231,12 @@ def single_table(bank: BankIndex, count: int, stored_noise: bool = False) -> dic
 
 
 def unmatched_table(bank: BankIndex, count: int) -> dict:
-    """The queries of :func:`single_table` at a quarter of their eps (σ·√d / 2, half the
-    RMSD of the noise alone: no stored piece can be within it, the path must come out
-    unmatched or in short pieces): per search the matched fraction, the segments and the
-    time, and the index's time over its own on the same queries at their eps (issue 13: a
-    path that does not match must cost about what one that matches does)."""
+    """The queries of :func:`single_table` at a quarter of their eps (σ·√d / 2, about half
+    the RMSD the noise alone leaves over a whole query: the query cannot match whole, and
+    comes out unmatched or in short pieces, where a fit absorbs more of the noise): per
+    search the matched fraction, the segments and the time, and the index's time over its own
+    on the same queries at their eps (issue 13: a path that does not match must cost about
+    what one that matches does)."""
     out = {}
     print()
     head = ("noise σ", "search", "matched, median (worst)", "segments, median", "median s",
