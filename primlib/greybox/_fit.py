@@ -63,6 +63,7 @@ from primlib.greybox._ripple import (
     RIPPLE,
     grid_step,
     output_columns,
+    pair_rows,
     ripple_choice,
     ripple_polish,
 )
@@ -251,11 +252,9 @@ def _pairs_of(row: dict, keep: np.ndarray) -> tuple[dict, np.ndarray]:
     friction the pair stays (:func:`_axis_choice` leaves it out only of the fits with
     friction): the input that held the axis still there is the ripple's own.
     """
-    starts = row["starts"]
-    sizes = np.diff(starts)[keep]
-    take = np.flatnonzero(np.repeat(keep, np.diff(starts)))
+    take, starts = pair_rows(row["starts"], keep)
     out = {k: row[k][take] for k in ("F", "r", "pos", "step", "gap")}
-    out.update(folds=_folds(sizes), starts=np.concatenate([[0], np.cumsum(sizes)]), tf=row["tf"])
+    out.update(folds=_folds(np.diff(starts)), starts=starts, tf=row["tf"])
     return out, take
 
 

@@ -65,9 +65,17 @@ def _search_pairs(row: dict, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if total > _SEARCH_ROWS:
         take = max(1, int(chosen.size * _SEARCH_ROWS / total))
         chosen = chosen[np.unique(np.linspace(0, chosen.size - 1, take).round().astype(int))]
-    idx = [np.arange(starts[j], starts[j + 1]) for j in chosen]
-    idx = np.concatenate(idx) if idx else np.zeros(0, int)
-    return idx, np.concatenate([[0], np.cumsum(sizes[chosen])])
+    pick = np.zeros(sizes.size, bool)
+    pick[chosen] = True
+    return pair_rows(starts, pick)
+
+
+def pair_rows(starts: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of the pairs ``keep`` (bool per pair; pair j is rows starts[j]..starts[j+1])
+    in their order, and where each kept pair starts among them."""
+    sizes = np.diff(starts)
+    rows = np.flatnonzero(np.repeat(keep, sizes))
+    return rows, np.concatenate([[0], np.cumsum(sizes[keep])])
 
 
 def _band(pos, step, known, fitted) -> tuple[float, float, float] | None:
