@@ -61,12 +61,13 @@ def _lfilter_all(machine, u):
 
 
 def main() -> int:
-    root = Path(__file__).resolve().parents[1]
-    xyz = Machine.from_json(root / "data" / "machines" / "xyz.json")
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--long-only", action="store_true",
                     help="only the long-path figures (ILC on 20,000 samples)")  # fmt: skip
-    if ap.parse_args().long_only:
+    long_only = ap.parse_args().long_only
+    root = Path(__file__).resolve().parents[1]
+    xyz = Machine.from_json(root / "data" / "machines" / "xyz.json")
+    if long_only:
         _bench_long(xyz)
         return 0
     pid = {a: {"kp": 20.0, "ki": 5.0, "kd": 0.2, "tf": 0.01} for a in xyz.axes}
