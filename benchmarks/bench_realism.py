@@ -226,19 +226,21 @@ def learn_library(
 
 
 def new_paths(placed: list[dict], rng, count: int, dt: float) -> dict[str, list]:
-    """(points, origin) of each kind; points absolute, origin = points[0]."""
+    """Per kind the paths, each (points, the placed primitive it reuses whole or None);
+    points absolute, origin = points[0]."""
     pick = rng.choice(len(placed), size=min(count, len(placed)), replace=False)
     out: dict[str, list] = {k: [] for k in KINDS}
     for i in pick:
-        p = placed[int(i)]["points"]
-        out["in place"].append(p)
+        prim = placed[int(i)]
+        p = prim["points"]
+        out["in place"].append((p, prim))
         shift = (
             rng.uniform(20.0, 80.0) * np.r_[np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a), 0]
         )
-        out["translated"].append(p + shift)
+        out["translated"].append((p + shift, prim))
     for pts, _ in make_paths(rng, count, dt):
         origin = rng.uniform(0.0, 1.0, 3) * (np.array(TABLE) - 80.0) + 20.0
-        out["rotated/scaled"].append(pts - pts[0] + origin)
+        out["rotated/scaled"].append((pts - pts[0] + origin, None))
     return out
 
 
@@ -291,7 +293,7 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
         t_lib = time.perf_counter() - t0
         rows: dict[str, list] = {k: [] for k in KINDS}
         for kind, paths in new_paths(placed, rng, args.paths, nominal.dt).items():
-            for j, pts in enumerate(paths):
+            for j, (pts, prim) in enumerate(paths):
                 starts, ref, ws = first_inputs(lib, nominal, pts)
                 learner = TrialLearner(nominal, ref)
                 runs = {
@@ -322,6 +324,7 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
                         "bound": bound,
                         "draws": draws,
                         "choices": list(ws.choices),
+                        "reused": _reused(prim),
                     }
                 )
     known = [(p["final"], p["worth"]) for p in placed if p["worth"] is not None]
@@ -332,6 +335,14 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
         "rows": rows,
         "stored_error": known,
     }
+
+
+def _reused(prim: dict | None) -> dict | None:
+    """The primitive a path reuses whole: its name, the error its stored input is recorded
+    to leave (``error_rms``) and the error it leaves on the calm machine (``final``)."""
+    if prim is None:
+        return None
+    return {"stem": prim["stem"], "recorded": prim["worth"], "own": prim["final"]}
 
 
 def _kept(folder: Path, name: str, seed: int) -> tuple[Path, Path]:
@@ -447,6 +458,30 @@ def _unreachable_trials(rows: list[dict], goal: float) -> str:
     return f" (unreachable: from the first-trial bound ILC needs {need:g} under the same draws)"
 
 
+def _harmed(rows: list[dict]) -> list[str]:
+    """A line per path whose warm start leaves more than 1.05x the model-only input's error
+    by itself (no disturbance, no noise), with what its stored signal was recorded to be
+    worth against what it is: the mix trusts the record within
+    :data:`primlib.pipeline._greywarm.ERROR_SPREAD` (1.5x), and where the record understates
+    more than that, the mix does harm."""
+    out = []
+    for j, r in enumerate(rows):
+        own, used = r.get("own"), r.get("reused")
+        if not own or own["warm"] <= 1.05 * own["model-only"]:
+            continue
+        what = ""
+        if used and used["recorded"] is not None and used["own"] > 0:
+            what = (
+                f" ({used['stem']}: recorded error_rms {used['recorded']:.3g}, its own "
+                f"{used['own']:.3g}, {used['recorded'] / used['own']:.2f}x)"
+            )
+        out.append(
+            f"  {'':15s} path {j}{what}: warm's own error {own['warm']:.3g} above the "
+            f"model-only input's {own['model-only']:.3g}"
+        )
+    return out
+
+
 def summarise(result: dict) -> list[str]:
     """Printed lines and acceptance checks of one setting."""
     lines, fails = [], []
@@ -486,6 +521,7 @@ def summarise(result: dict) -> list[str]:
                 + "  ".join(f"{s} {v:.3g}" for s, v in own.items())
                 + f"; warm/refined {own['warm'] / own['refined']:.2f}"
             )
+        lines += _harmed(rows)
         bound = statistics.median([r["bound"]["draws"] for r in rows]) if drawn else None
         if drawn:
             lines.append(

@@ -82,6 +82,23 @@ def test_a_trials_check_the_bound_cannot_meet_says_so():
     assert bench_realism._unreachable_trials([{"bound": None}], 1.0) == ""
 
 
+def test_a_path_where_the_mix_did_harm_is_named_with_its_record_against_its_own_error():
+    # stop 37's all-together library (seed 0): arc-climb's stored input recorded at 0.0397
+    # mm, leaving 0.0993 by itself; its in-place warm start 0.0718 against model-only 0.0493
+    climb = {"stem": "arc-climb", "recorded": 0.0397, "own": 0.0993}
+    rows = [
+        {"own": {"warm": 0.0174, "model-only": 0.0184}, "reused": dict(climb, stem="helix")},
+        {"own": {"warm": 0.0718, "model-only": 0.0493}, "reused": climb},
+        {"own": {"warm": 0.0122, "model-only": 0.0120}, "reused": None},  # within 1.05x
+        {"own": {"warm": 0.2, "model-only": 0.1}, "reused": None},  # a path of no primitive
+    ]
+    lines = bench_realism._harmed(rows)
+    assert len(lines) == 2
+    assert "path 1 (arc-climb:" in lines[0] and "0.40x" in lines[0]
+    assert "0.0718" in lines[0] and "0.0493" in lines[0]
+    assert "path 3:" in lines[1] and "recorded" not in lines[1]
+
+
 @pytest.mark.slow
 def test_a_kept_library_gives_the_same_figures_and_is_left_as_it_was(tmp_path):
     import hashlib
