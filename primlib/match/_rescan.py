@@ -28,6 +28,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from primlib.match._bank import BankIndex
 from primlib.match._bounds import gyration_bound
+from primlib.match._grid import _Query
 from primlib.match._interp import cubic_at
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions
@@ -45,7 +46,7 @@ def rescan(bank: BankIndex, seeds: list[Candidate], path: PathPiece, a: float, b
     if not seeds:
         return seeds
     k = opts.grid_points
-    q = path.at(np.linspace(a, b, k))
+    query = _Query.of(path.at(np.linspace(a, b, k)), opts.rotation)
     prim = np.fromiter((c.prim for c in seeds), np.int64, len(seeds))
     x0 = np.fromiter((c.x0 for c in seeds), float, len(seeds))
     x1 = np.fromiter((c.x1 for c in seeds), float, len(seeds))
@@ -55,7 +56,7 @@ def rescan(bank: BankIndex, seeds: list[Candidate], path: PathPiece, a: float, b
     h = dur / (k - 1)
     shift = np.arange(-SHIFTS, SHIFTS + 1)
     first = 0.5 * (x0 + x1)[:, None] - 0.5 * dur  # each scale's window without shift
-    r = _scores(bank, prim, first - SHIFTS * h, h, q, opts.rotation)  # (seeds, scales, shifts)
+    r = _scores(bank, prim, first - SHIFTS * h, h, query, opts.rotation)  # (seeds, scales, shifts)
     start = first[:, :, None] + shift * h[:, :, None]
     steps = (b - a) * path.duration / bank.dt
     last = (bank.counts[prim] - 1.0)[:, None, None]
@@ -73,13 +74,15 @@ def rescan(bank: BankIndex, seeds: list[Candidate], path: PathPiece, a: float, b
             for c, s, w, v in zip(seeds, s0, d0, r[rows, at], strict=True)]  # fmt: skip
 
 
-def _scores(bank: BankIndex, prim: np.ndarray, base: np.ndarray, h: np.ndarray, q: np.ndarray,
+def _scores(bank: BankIndex, prim: np.ndarray, base: np.ndarray, h: np.ndarray, query: _Query,
             rotation: str) -> np.ndarray:  # fmt: skip
-    """Kabsch RMSD against the query's K points of every window of K consecutive points of
+    """Kabsch RMSD against the query's K points (centred, with their energy: the grid's
+    :class:`._grid._Query`) of every window of K consecutive points of
     the lattice base + t·h (t = 0, ..., K − 1 + 2·SHIFTS) of each seed and scale, shape
     (seeds, scales, 2·SHIFTS + 1): the windows of one scale share their points, so each
     lattice point is interpolated once (not once per window that holds it)."""
-    k, dim = q.shape
+    qc, sq = query.qc, query.sq
+    k, dim = qc.shape
     span = k + 2 * SHIFTS
     x = base[..., None] + h[..., None] * np.arange(span)  # (s, j, span)
     rows = np.broadcast_to(prim[:, None, None], x.shape).ravel()
@@ -93,8 +96,6 @@ def _scores(bank: BankIndex, prim: np.ndarray, base: np.ndarray, h: np.ndarray, 
     sp = (c2[:, :, k:] - c2[:, :, :-k]) - s1 * s1 / k  # Σ|p̃|² per axis
     if rotation != "z":
         sp = sp.sum(axis=-1)
-    qc = q - q.mean(axis=0)
-    sq = (qc * qc).sum(axis=0) if rotation == "z" else float((qc * qc).sum())
     # S = P̃ᵀ Q̃ = Pᵀ Q̃ (Q̃ sums to 0): the windows' points against the centred query
     cross = (sliding_window_view(p, k, axis=2) @ qc).reshape(*s1.shape[:3], dim, dim)
     return _pruned_rmsd(cross, sp, sq, k, rotation)
