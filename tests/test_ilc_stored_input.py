@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from primlib.ilc import TrialLearner
+from primlib.ilc._noise import pooled_noise
 from primlib.ilc._settled import MIN_RUN, settled_runs
 from primlib.plant import Machine, RealisticMachine, invert, typical_scales
 
@@ -101,3 +102,27 @@ def test_without_anything_trial_varying_the_best_trials_input_is_stored():
     stored, err, run = learner.stored_input(u, y)
     assert run == (best, best + 1) and err == worth
     np.testing.assert_array_equal(stored, u[best])
+
+
+@pytest.mark.slow
+def test_the_pooled_floor_is_the_series_draws_size_not_its_lucky_pairs():
+    # a 2 Hz input disturbance has a few degrees of freedom a trial: the measured errors of
+    # settled trials scatter by 4x, and the lowest is a lucky draw; the floor pooled over
+    # the settled pairs must be what the series' draws moved the machine by (here 0.45 mm
+    # RMS, one draw 0.13-0.9), not what the pairs of the small ones say (0.29 by the 3x
+    # rule alone). The model is the machine's linear part, so each pair's floor is exactly
+    # half its two draws' difference: the pool is unbiased up to the draws' own scatter
+    model, machine = _stage(disturbance=0.02, disturbance_bandwidth=2.0)
+    _, calm = _stage()
+    ref = _ref()
+    learner = TrialLearner(model, ref)
+    runner = machine.trials(start=[0.0, 0.0])
+    inputs, outputs, draws, u = [], [], [], invert(model, ref)
+    for _ in range(16):
+        outputs.append(runner.run(u))
+        inputs.append(u)
+        draws.append(runner.true[-1] - calm.simulate(u, start=[0.0, 0.0]))
+        u = learner.update(np.stack(inputs), np.stack(outputs)).u
+    floor_axes, _ = pooled_noise(learner._h, ref, np.stack(inputs), np.stack(outputs))
+    draw = np.sqrt(np.mean(np.sum(np.square(draws), axis=2)))
+    assert 0.8 < np.sqrt(np.sum(floor_axes**2)) / draw < 1.25
