@@ -76,6 +76,17 @@ def test_a_path_that_does_not_move_is_refused(db):
     _refused(db, [(still, np.zeros((121, 3)), "still")], "expected a path that moves")
 
 
+def test_in_a_batch_the_first_path_that_does_not_move_is_named_and_nothing_written(db):
+    # the paths are checked all at once (one pass over every sample): the message still
+    # names the first failing item and where it stays
+    moving = [Trajectory.from_samples(arc(offset=k), DT) for k in (1.0, 2.0)]
+    still = [Trajectory.from_samples(np.tile(p, (121, 1)), DT) for p in ([5, -2, 1], [7, 7, 7])]
+    u = np.zeros((121, 3))
+    items = [(moving[0], u, "a"), (still[0], u, "still"), (moving[1], u, "b"), (still[1], u, "c")]
+    _refused(db, items, r"item 1 \('still'\): expected a path that moves, got one that stays "
+             r"at \(5, -2, 1\) \(extent ")  # fmt: skip
+
+
 def test_a_path_that_moves_a_little_far_from_the_origin_is_accepted(db):
     # 5e-4 of motion at 1e4 from the origin: 5e-8 of its size, above MIN_EXTENT_REL (1e-9)
     small = Trajectory.from_samples(arc(scale=1e-4, offset=1e4), DT)

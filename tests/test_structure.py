@@ -67,8 +67,8 @@ def test_no_private_name_or_module_imported_across_packages():
         own = _package(f)
         for module, names in _imports(tree):
             parts = module.split(".")
-            if len(parts) < 2 or parts[1] in (own, "_errors"):
-                continue  # the package itself, or the shared error classes
+            if len(parts) < 2 or parts[1] == own or (len(parts) == 2 and parts[1][0] == "_"):
+                continue  # the package itself, or a top-level private module (shared by all)
             private_module = any(p.startswith("_") for p in parts[1:])
             private_names = [n for n in names if n.startswith("_")]
             if private_module or private_names:

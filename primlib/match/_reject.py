@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from primlib._rows import row_groups
+
 __all__ = ["Envelope", "lower_bounds", "rejects", "row_groups"]
 
 _OVERSHOOT = 0.5  # of the largest sample step (Catmull-Rom: < 0.3)
@@ -69,16 +71,6 @@ class Envelope:
         far_xy = np.sqrt(far2_xy) + margin if d == 3 else np.zeros(k)
         half = 0.5 * (hi - lo) + margin[:, None]
         return cls(np.sqrt(far2) + margin, half, far_xy, np.diff(offsets) - 1.0)
-
-
-def row_groups(offsets: np.ndarray, rows: int = 1 << 16) -> list[tuple[int, int]]:
-    """Consecutive ranges [g0, g1) of whole primitives of about ``rows`` samples each (at
-    least one primitive each), covering all of them: passes over the samples a group at a
-    time keep their temporaries in cache."""
-    k = len(offsets) - 1
-    cuts = np.searchsorted(offsets, np.arange(0, int(offsets[-1]), rows), side="right") - 1
-    cuts = np.unique(np.concatenate([[0], np.minimum(cuts, k), [k]]))
-    return list(zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True))
 
 
 def lower_bounds(env: Envelope, q: np.ndarray, rotation: str) -> np.ndarray:

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from primlib._errors import InputError
+from primlib._rows import row_groups
 from primlib.defaults import MAX_ABS_VALUE, MIN_EXTENT_REL
 
 __all__ = [
@@ -260,16 +261,36 @@ def check_points(
             f"{c['label']}: expected the path to sample to ({c['n']}, {d}) finite points at "
             f"dt = {dt:g} s, got NaN or inf"
         )
-    for i, c in enumerate(checked):
-        pts = flat[offsets[i] : offsets[i + 1]].reshape(-1, d)
-        _check_values(c["label"], "path", pts)
-        extent = float(np.max(np.linalg.norm(pts - pts.mean(axis=0), axis=1)))
-        scale = max(float(np.max(np.abs(pts))), 1.0)
-        if extent <= MIN_EXTENT_REL * scale:
-            raise InputError(
-                f"{c['label']}: expected a path that moves, got one that stays at "
-                f"({', '.join(f'{x:.6g}' for x in pts[0])}) (extent {extent:.3g})"
-            )
+    if not checked:
+        return
+    pts = flat.reshape(-1, d)
+    rows = np.diff(offsets) // d
+    starts = offsets[:-1] // d
+    peak, extent = np.empty(len(checked)), np.empty(len(checked))
+    # whole paths ~65,536 samples at a time: every pass over a group's samples runs in
+    # cache, with no temporary the size of the batch (1,000 paths of 2,400 samples: 0.2 s
+    # as ~10 small passes a path, 0.3 s in whole-batch passes that first-touch new memory)
+    for g0, g1 in row_groups(offsets // d):
+        r0, r1 = starts[g0], offsets[g1] // d
+        part, st, n = pts[r0:r1], starts[g0:g1] - r0, rows[g0:g1]
+        peak[g0:g1] = np.maximum.reduceat(np.abs(flat[r0 * d : r1 * d]), st * d)
+        dev = part - np.repeat(np.add.reduceat(part, st, axis=0) / n[:, None], n, axis=0)
+        extent[g0:g1] = np.sqrt(np.maximum.reduceat(np.einsum("ij,ij->i", dev, dev), st))
+    over = np.flatnonzero(peak > MAX_ABS_VALUE)
+    still = np.flatnonzero(extent <= MIN_EXTENT_REL * np.maximum(peak, 1.0))
+    first = min(np.concatenate([over, still, [len(checked)]]))
+    if first == len(checked):
+        return
+    c = checked[first]
+    if first in over:
+        raise InputError(
+            f"{c['label']}: expected path values within +-{MAX_ABS_VALUE:g}, got "
+            f"{float(peak[first]):.6g}"
+        )
+    raise InputError(
+        f"{c['label']}: expected a path that moves, got one that stays at "
+        f"({', '.join(f'{x:.6g}' for x in pts[starts[first]])}) (extent {extent[first]:.3g})"
+    )
 
 
 def content_hash(machine: str, points: np.ndarray, signal: np.ndarray) -> str:
