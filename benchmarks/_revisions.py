@@ -23,11 +23,27 @@ __all__ = ["ROOT", "alternated", "extract", "run_worker"]
 
 
 def extract(rev: str, folder: str | Path) -> Path:
-    """Revision ``rev``'s ``primlib`` package extracted into ``folder`` (returned)."""
-    tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "primlib"],
-                         capture_output=True, check=True).stdout  # fmt: skip
+    """Revision ``rev``'s ``primlib`` package extracted into ``folder`` (returned); a
+    SystemExit (status 2) saying why when git cannot give it (no git, a folder that is not a
+    checkout -- a ``git archive`` snapshot -- or an unknown revision)."""
+    try:
+        done = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "primlib"],
+                              capture_output=True)  # fmt: skip
+    except OSError as exc:
+        raise SystemExit(_no_baseline(rev, f"git did not run ({exc})")) from None
+    if done.returncode != 0:
+        why = done.stderr.decode(errors="replace").strip().splitlines() or ["git failed"]
+        raise SystemExit(_no_baseline(rev, why[-1]))
+    tar = done.stdout
     subprocess.run(["tar", "-x", "-C", str(folder)], input=tar, check=True)
     return Path(folder)
+
+
+def _no_baseline(rev: str, why: str) -> str:
+    """The sentence a benchmark stops with when the baseline revision cannot be had."""
+    print(f"baseline {rev!r}: cannot extract it from {ROOT}: {why} (run from a git "
+          "checkout that holds the revision, or pass --no-baseline)", file=sys.stderr)  # fmt: skip
+    return 2
 
 
 def run_worker(script: str | Path, arg: str, tree: str | Path) -> Any:

@@ -23,3 +23,13 @@ def test_help_prints_the_usage(script):
                          text=True, timeout=120)  # fmt: skip
     assert run.returncode == 0, run.stderr[-2000:]
     assert run.stdout.startswith("usage:") and run.stderr == ""
+
+
+def test_a_baseline_git_cannot_give_stops_with_one_sentence_and_status_2(tmp_path):
+    # a revision that does not exist (or a snapshot that is no checkout): no traceback
+    run = subprocess.run([sys.executable, str(BENCH / "bench_match_novel.py"), "--paths", "1",
+                          "--baseline", "no-such-revision"], capture_output=True, text=True,
+                         timeout=120)  # fmt: skip
+    assert run.returncode == 2
+    assert "baseline 'no-such-revision': cannot extract it from" in run.stderr
+    assert "--no-baseline" in run.stderr and "Traceback" not in run.stderr
