@@ -39,8 +39,8 @@ def extract(rev: str, folder: str | Path) -> Path:
     return Path(folder)
 
 
-def _no_baseline(rev: str, why: str) -> str:
-    """The sentence a benchmark stops with when the baseline revision cannot be had."""
+def _no_baseline(rev: str, why: str) -> int:
+    """Say on stderr why the baseline revision cannot be had; the exit status (2)."""
     print(f"baseline {rev!r}: cannot extract it from {ROOT}: {why} (run from a git "
           "checkout that holds the revision, or pass --no-baseline)", file=sys.stderr)  # fmt: skip
     return 2
