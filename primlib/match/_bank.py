@@ -12,6 +12,7 @@ from primlib._errors import NoMatchError
 from primlib.defaults import MAX_ABS_VALUE
 from primlib.match._arc_index import ArcIndex, ArcSamples
 from primlib.match._reject import Envelope
+from primlib.match._rough import BANK_MAX, Roughness
 
 if TYPE_CHECKING:
     from primlib.store import Bank
@@ -96,6 +97,7 @@ class BankIndex:
         self._vmax: np.ndarray | None = None
         self._steps: np.ndarray | None = None
         self._envelope: Envelope | None = None
+        self._roughness: Roughness | None = None
         self.index_seconds = 0.0
 
     @property
@@ -215,6 +217,13 @@ class BankIndex:
         if self._envelope is None:
             self._envelope = Envelope.of(self.points, self.offsets, self.max_step())
         return self._envelope
+
+    def roughness(self) -> Roughness | None:
+        """Per-primitive roughness bounds (:mod:`._rough`), built once; None on a bank of
+        more than ``BANK_MAX`` samples."""
+        if self._roughness is None and self.points.shape[0] <= BANK_MAX:
+            self._roughness = Roughness(self.points, self.offsets)
+        return self._roughness
 
     def __repr__(self) -> str:
         return f"BankIndex({self.machine!r}, {self.k} primitives, {len(self.skipped)} skipped)"

@@ -29,7 +29,9 @@ class Gates:
     over: np.ndarray  # starts of the windows with ``need`` left, not inside (any < M)
 
     @classmethod
-    def of(cls, aq: ArcQuery, eps: float) -> Gates:
+    def of(cls, aq: ArcQuery, eps: float, skip: np.ndarray | None = None) -> Gates:
+        """The gates of query ``aq``; no window of a primitive that ``skip`` (k,) marks
+        (one no window of which can be within eps, :func:`._rough.lower_bounds`) valid."""
         # a stored copy starts within half a base step of some window start, which moves
         # every arc sample by at most that: its window's shape RMSD is below the gate; the
         # copy is within eps + smoothing (+ the stored window's own) of what the index holds
@@ -44,6 +46,8 @@ class Gates:
         fit = lv.fit_counts(need)
         inside = np.minimum(np.maximum(lv.counts - aq.span + 1, 0), fit)
         extra = fit - inside  # a few per primitive at most
+        if skip is not None:
+            inside, extra = np.where(skip, 0, inside), np.where(skip, 0, extra)
         over = np.repeat(lv.start + inside, extra) + _ranks(extra)
         return cls(gate, stored, lv.first_of(inside), need, over)
 

@@ -75,6 +75,7 @@ from primlib.match._grid import GridSearch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import CandidatePool, best_and_ties, suppress
 from primlib.match._rescan import rescan
+from primlib.match._rough import K_MAX, lower_bounds
 from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, wiggly
 
 __all__ = ["IndexSearch", "ArcQuery"]
@@ -309,7 +310,7 @@ class IndexSearch:
         if aq.n_windows <= 0:
             return []
         self.stats.queries += 1
-        gates = _Gates.of(aq, eps)
+        gates = _Gates.of(aq, eps, self._rough_skip(path, a, b, eps))
         pool = self._best_first(aq, gates)
         if pool.keys.size == 0:
             return []
@@ -318,6 +319,18 @@ class IndexSearch:
         # the best few placed on uniform time (:mod:`._rescan`); the rest are near ties
         top = 2 * self.opts.seeds
         return rescan(self.bank, seeds[:top], path, a, b, self.opts) + seeds[top:]
+
+    def _rough_skip(self, path: PathPiece, a: float, b: float, eps: float) -> np.ndarray | None:
+        """The primitives no window of which can be within eps of the piece's samples (the
+        check's, :meth:`._segment._Segmenter.probe`) by its roughness
+        (:func:`._rough.lower_bounds`; a noisy piece), or None."""
+        kc = path.confirm_points(a, b)
+        if not 5 <= kc <= K_MAX:
+            return None
+        q = path.at(np.linspace(a, b, kc))
+        steps = (b - a) * path.duration / self.bank.dt
+        lb = lower_bounds(self.bank.roughness(), q, steps, self.opts.time_scale, eps)
+        return None if lb is None else lb >= eps * (1.0 + 1e-9)
 
     def _best_first(self, aq: ArcQuery, gates: _Gates) -> CandidatePool:
         """Score windows best-first in order of lower bounds until none left can enter the

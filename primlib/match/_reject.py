@@ -89,9 +89,12 @@ def lower_bounds(env: Envelope, q: np.ndarray, rotation: str) -> np.ndarray:
 
 
 def rejects(env: Envelope, q: np.ndarray, samples: float, low: float, rotation: str,
-            eps: float) -> bool:  # fmt: skip
+            eps: float, more: np.ndarray | None = None) -> bool:  # fmt: skip
     """True when no primitive can be within ``eps`` of the piece ``q`` (K, d), which lasts
-    ``samples`` sample steps, at time scales >= ``low`` (module notes)."""
+    ``samples`` sample steps, at time scales >= ``low`` (module notes); ``more``: other lower
+    bounds per primitive (:func:`._rough.lower_bounds`), or None."""
     lb = lower_bounds(env, q, rotation)
+    if more is not None:
+        lb = np.maximum(lb, more)
     possible = (env.last >= low * samples * (1.0 - 1e-9)) & (lb < eps * (1.0 + 1e-9))
     return not bool(np.any(possible))

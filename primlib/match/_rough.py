@@ -1,0 +1,167 @@
+"""A lower bound from a piece's roughness, for every primitive at once: a noisy piece that
+nothing matches is rejected before any window is scored (issue 13: failing probes cheap).
+
+The check (:meth:`._segment._Segmenter.probe`) asks whether some window of a stored
+primitive -- K points W_i = c(x0 + i·h), c its Catmull-Rom interpolant (:func:`._interp.cubic_at`),
+0 ≤ x0, x0 + (K − 1)·h ≤ n − 1, h = duration / (K − 1) in the time-scale range
+(:func:`._refine.clamp_many`) -- lies within eps of the piece's K samples q once rotated and
+translated: ρ = ‖q − W Rᵀ − 1 tᵀ‖ / √K below eps.
+
+**The query's side.** Let P be the orthogonal projector onto the polynomials of degree ≤ 3 in
+the sample index, applied to each coordinate (K × K, acting on the samples). I − P removes
+the translation (a constant) and commutes with R (which mixes coordinates, not samples), so
+for every R and t
+
+    √K·ρ ≥ ‖(I − P)(q − W Rᵀ)‖ ≥ ‖(I − P) q‖ − ‖(I − P) W‖.
+
+White noise of σ per coordinate leaves (K − 4)·d·σ² of energy in ‖(I − P) q‖²; a window of a
+smooth primitive at a modest time scale keeps little in ‖(I − P) W‖.
+
+**The stored side: ‖(I − P) W‖ ≤ R_j over every window of primitive j**, h in a bin
+[h0, h1]. Catmull-Rom with its ends clamped is the cardinal interpolation
+c(x) = Σ_m p̃_m φ(x − m) of the samples extended by a ghost at each end (p̃_−1 = p_0,
+p̃_n = p_n−1), with the kernel φ(t) = 1.5|t|³ − 2.5t² + 1 (|t| ≤ 1), −0.5|t|³ + 2.5t² − 4|t| + 2
+(1 ≤ |t| ≤ 2), 0 beyond. The points of a window starting in [i, i + 1) read the samples
+S = i − 1, ..., ⌊i + 1 + (K − 1)·h1⌋ + 2 (L of them): W = Φ p̃_S, Φ_km = φ(x_k − m). Split
+p̃_S = Q + r with Q the least-squares cubic over S (leading coefficient a, a d-vector) and r
+its residual. φ reproduces quadratics exactly and m³ up to a periodic error,
+Σ_m m³ φ(x − m) = x³ + g(x − ⌊x⌋) with g(f) = f(1 − f)(1 − 2f), |g| ≤ √3/18, so
+W = Q(x) + a·g(frac x) + Φ r, and I − P removes Q(x) (a cubic in k):
+
+    ‖(I − P) W‖ ≤ ‖Φ‖₂·‖r‖ + |a|·(√3/18)·√K,   ‖Φ‖₂ ≤ √(‖Φ‖₁·‖Φ‖∞),
+
+‖Φ‖∞ = max Σ_m |φ(x − m)| = 1 + f(1 − f) ≤ 1.25 (the outer weights sum to −f(1 − f)/2, the
+inner to 1 + f(1 − f)/2), and ‖Φ‖₁ ≤ ⌈2/h0⌉ + 0.0741·2·(⌊1/h0⌋ + 1) (a column m: at most ⌈2/h⌉
+points within 1 of m, where |φ| ≤ 1, and 2·(⌊1/h⌋ + 1) between 1 and 2 from it, where
+|φ| ≤ 2/27 < 0.0741). Any S holding a window's samples will do, so a support running past a
+primitive's extended samples is replaced by its last L (or all of them, on a short primitive).
+R_j is the largest such bound over the supports of the primitive, with a margin for
+round-off; the bins are a fixed geometric grid in h (ratio 2^¼), each computed once per K and
+kept.
+
+**The probe fails** where every primitive that can hold the piece has
+(‖(I − P) q‖ − R_j)/√K ≥ eps (:func:`._reject.rejects`): what the check would find, sooner.
+Tried only on pieces of 5 to ``K_MAX`` samples (longer ones smooth a primitive's curvature into
+R_j, and the check seldom fails there for noise alone), where ‖(I − P) q‖/√K ≥ eps (else no
+primitive can be excluded), and on banks of at most ``BANK_MAX`` samples (each bin reads every
+window of the bank: ~5 ms on the 8,400 bundled samples, seconds on 2 million).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+__all__ = ["Roughness", "query_roughness", "lower_bounds", "K_MAX", "BANK_MAX"]
+
+K_MAX = 16  # samples of the longest piece tried
+BANK_MAX = 1 << 17  # stored samples of the largest bank tried
+_G = math.sqrt(3.0) / 18.0  # max |f (1 − f)(1 − 2 f)| on [0, 1]
+_FAR = 2.0 / 27.0 * (1.0 + 1e-9)  # max |φ| on 1 ≤ |t| ≤ 2 (at |t| = 4/3)
+_BINS = 4  # bins per octave of h
+_U = 1e-9  # round-off margin, relative to the coordinates' magnitude
+
+
+def query_roughness(q: np.ndarray) -> float:
+    """‖(I − P) q‖ of the piece's K samples (K, d), less a margin for round-off (0 for
+    K ≤ 4: every sequence is then a cubic)."""
+    k = q.shape[0]
+    if k <= 4:
+        return 0.0
+    basis = _basis(k)
+    qc = q - q.mean(axis=0)
+    res = qc - basis @ (basis.T @ qc)
+    scale = float(np.abs(q).max()) if q.size else 0.0
+    return max(float(np.linalg.norm(res)) - _U * scale * math.sqrt(q.size), 0.0)
+
+
+def _basis(k: int) -> np.ndarray:
+    """Orthonormal basis (k, 4) of the cubics in the sample index."""
+    t = np.arange(k, dtype=float) - 0.5 * (k - 1)
+    return np.linalg.qr(np.vander(t / max(k - 1, 1), 4, increasing=True))[0]
+
+
+class Roughness:
+    """Per primitive, R_j (module notes) of K-sample windows over a range of h, each bin
+    computed once and kept."""
+
+    def __init__(self, points: np.ndarray, offsets: np.ndarray) -> None:
+        self.offsets = np.asarray(offsets, dtype=np.int64)
+        counts = np.diff(self.offsets)
+        size = counts + 2  # the extended samples: a ghost before and after each primitive
+        self.ext_off = np.concatenate([[0], np.cumsum(size)])
+        local = np.arange(self.ext_off[-1]) - np.repeat(self.ext_off[:-1], size) - 1
+        last = np.repeat(np.maximum(counts - 1, 0), size)
+        rows = np.repeat(self.offsets[:-1], size) + np.clip(local, 0, last)
+        self.ext = np.ascontiguousarray(points[rows])
+        self.scale = float(np.abs(points).max()) if points.size else 0.0
+        self._bins: dict[tuple[int, int], np.ndarray] = {}
+
+    def bound(self, k: int, h_lo: float, h_hi: float) -> np.ndarray:
+        """R_j of every primitive for K = ``k`` samples and h in [h_lo, h_hi], shape (k,)."""
+        b0 = math.floor(_BINS * math.log2(h_lo))
+        b1 = max(math.ceil(_BINS * math.log2(h_hi)), b0 + 1)
+        out = np.zeros(self.ext_off.size - 1)
+        for b in range(b0, b1):
+            key = (k, b)
+            if key not in self._bins:
+                self._bins[key] = self._bin(k, 2.0 ** (b / _BINS), 2.0 ** ((b + 1) / _BINS))
+            np.maximum(out, self._bins[key], out=out)
+        return out
+
+    def _bin(self, k: int, h0: float, h1: float) -> np.ndarray:
+        """R_j for h in [h0, h1] (module notes)."""
+        ell = math.floor(1.0 + (k - 1) * h1) + 4
+        col = math.ceil(2.0 / h0) + _FAR * 2.0 * (math.floor(1.0 / h0) + 1.0)
+        phi = math.sqrt(1.25 * col)
+        sizes = np.diff(self.ext_off)
+        out = np.zeros(sizes.size)
+        for size in np.unique(np.minimum(sizes, ell)):
+            prims = np.flatnonzero(np.minimum(sizes, ell) == size)
+            out[prims] = self._supports(prims, int(size), phi, k)
+        margin = _U * self.scale * (phi * math.sqrt(ell * self.ext.shape[1]) + math.sqrt(k))
+        return out + margin
+
+    def _supports(self, prims: np.ndarray, size: int, phi: float, k: int) -> np.ndarray:
+        """Largest ‖Φ‖·‖r‖ + |a|·g·√K over every support of ``size`` samples of each
+        primitive of ``prims`` (their extended samples at least ``size`` long)."""
+        if size <= 4:
+            return np.zeros(prims.size)  # every sequence of 4 samples is a cubic
+        t = np.arange(size, dtype=float) - 0.5 * (size - 1)
+        vander = np.vander(t, 4, increasing=True)
+        lead = np.linalg.pinv(vander)[3]  # the t³ coefficient of the least-squares cubic
+        basis = np.linalg.qr(vander)[0]
+        windows = sliding_window_view(self.ext, size, axis=0)  # (rows − size + 1, d, size)
+        first = self.ext_off[prims]
+        count = self.ext_off[prims + 1] - first - size + 1
+        starts = np.repeat(first - np.cumsum(count) + count, count) + np.arange(count.sum())
+        ids = np.repeat(np.arange(prims.size), count)
+        out = np.zeros(prims.size)
+        for g0 in range(0, starts.size, 1 << 14):  # blocks of windows: bounded temporaries
+            w = windows[starts[g0 : g0 + (1 << 14)]]
+            w = w - w.mean(axis=2, keepdims=True)
+            res = w - (w @ basis) @ basis.T
+            val = phi * np.sqrt(np.einsum("mdl,mdl->m", res, res))
+            val += _G * math.sqrt(k) * np.linalg.norm(w @ lead, axis=1)
+            seg = ids[g0 : g0 + val.size]
+            cut = np.concatenate([[0], np.flatnonzero(np.diff(seg)) + 1])
+            np.maximum.at(out, seg[cut], np.maximum.reduceat(val, cut))
+        return out
+
+
+def lower_bounds(rough: Roughness | None, q: np.ndarray, steps: float,
+                 time_scale: tuple[float, float], eps: float) -> np.ndarray | None:  # fmt: skip
+    """(‖(I − P) q‖ − R_j)/√K for every primitive j (module notes): a lower bound on the
+    RMSD of any of its windows against the piece ``q`` (K, d), which lasts ``steps`` sample
+    steps of the bank, at time scales in ``time_scale``; None where it cannot exclude any
+    (no bank table, K outside 5 ... ``K_MAX``, or a piece smooth to within eps)."""
+    k = q.shape[0]
+    if rough is None or not 5 <= k <= K_MAX:
+        return None
+    rq = query_roughness(q)
+    if rq < eps * math.sqrt(k):
+        return None
+    per = steps / (k - 1)  # h of a window at time scale 1
+    return (rq - rough.bound(k, time_scale[0] * per, time_scale[1] * per)) / math.sqrt(k)
