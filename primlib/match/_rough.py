@@ -49,6 +49,7 @@ window of the bank: ~5 ms on the 8,400 bundled samples, seconds on 2 million).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -77,8 +78,10 @@ def query_roughness(q: np.ndarray) -> float:
     return max(float(np.linalg.norm(res)) - _U * scale * math.sqrt(q.size), 0.0)
 
 
+@functools.lru_cache(maxsize=64)
 def _basis(k: int) -> np.ndarray:
-    """Orthonormal basis (k, 4) of the cubics in the sample index."""
+    """Orthonormal basis (k, 4) of the cubics in the sample index (kept per k: every short
+    probe asks)."""
     t = np.arange(k, dtype=float) - 0.5 * (k - 1)
     return np.linalg.qr(np.vander(t / max(k - 1, 1), 4, increasing=True))[0]
 
