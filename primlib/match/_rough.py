@@ -36,8 +36,8 @@ points within 1 of m, where |φ| ≤ 1, and 2·(⌊1/h⌋ + 1) between 1 and 2 f
 |φ| ≤ 2/27 < 0.0741). Any S holding a window's samples will do, so a support running past a
 primitive's extended samples is replaced by its last L (or all of them, on a short primitive).
 R_j is the largest such bound over the supports of the primitive, with a margin for
-round-off; the bins are a fixed geometric grid in h (ratio 2^¼), each computed once per K and
-kept.
+round-off; the bins are a fixed geometric grid in h (octaves, their edges 1 % above the
+powers of 2), each computed once per K and kept.
 
 **The probe fails** where every primitive that can hold the piece has
 (‖(I − P) q‖ − R_j)/√K ≥ eps (:func:`._reject.rejects`): what the check would find, sooner.
@@ -61,8 +61,12 @@ K_MAX = 16  # samples of the longest piece tried
 BANK_MAX = 1 << 17  # stored samples of the largest bank tried
 _G = math.sqrt(3.0) / 18.0  # max |f (1 − f)(1 − 2 f)| on [0, 1]
 _FAR = 2.0 / 27.0 * (1.0 + 1e-9)  # max |φ| on 1 ≤ |t| ≤ 2 (at |t| = 4/3)
-_BINS = 4  # bins per octave of h
+_BINS = 1  # bins per octave of h (the largest bound is the top bin's: 4 gave the same, 5x the time)
 _U = 1e-9  # round-off margin, relative to the coordinates' magnitude
+_EDGE = 1e-10  # log2(1 + 1e-9) > 1.4e-9: a bin covers h a relative 1e-9 past its edges
+# the bins' edges 1 % above the powers of 2, where the counts of points near a sample jump
+# (2/h and 1/h whole: the bin [2, 4] would take the 2 points of h just below 2)
+_SHIFT = 1.01
 
 
 def query_roughness(q: np.ndarray) -> float:
@@ -104,20 +108,25 @@ class Roughness:
 
     def bound(self, k: int, h_lo: float, h_hi: float) -> np.ndarray:
         """R_j of every primitive for K = ``k`` samples and h in [h_lo, h_hi], shape (k,)."""
-        b0 = math.floor(_BINS * math.log2(h_lo))
-        b1 = max(math.ceil(_BINS * math.log2(h_hi)), b0 + 1)
+        # each bin holds h up to (1 + 1e-9) its top (:meth:`_bin`): a range that ends on a
+        # bin's edge but for round-off (h at time scale 4 is 4·(1 + ε) when the path's dt is
+        # the bank's) asks for no bin beyond, whose supports are twice as long
+        b0 = math.floor(_BINS * math.log2(h_lo / _SHIFT) + _EDGE)
+        b1 = max(math.ceil(_BINS * math.log2(h_hi / _SHIFT) - _EDGE), b0 + 1)
         out = np.zeros(self.ext_off.size - 1)
         for b in range(b0, b1):
             key = (k, b)
             if key not in self._bins:
-                self._bins[key] = self._bin(k, 2.0 ** (b / _BINS), 2.0 ** ((b + 1) / _BINS))
+                edges = _SHIFT * 2.0 ** (b / _BINS), _SHIFT * 2.0 ** ((b + 1) / _BINS)
+                self._bins[key] = self._bin(k, *edges)
             np.maximum(out, self._bins[key], out=out)
         return out
 
     def _bin(self, k: int, h0: float, h1: float) -> np.ndarray:
         """R_j for h in [h0, h1] (module notes)."""
-        ell = math.floor(1.0 + (k - 1) * h1) + 4
-        col = math.ceil(2.0 / h0) + _FAR * 2.0 * (math.floor(1.0 / h0) + 1.0)
+        ell = math.floor(1.0 + (k - 1) * h1 * (1.0 + 1e-9)) + 4
+        low = h0 * (1.0 - 1e-9)  # the bin's bottom, a little below (:meth:`bound`)
+        col = math.ceil(2.0 / low) + _FAR * 2.0 * (math.floor(1.0 / low) + 1.0)
         phi = math.sqrt(1.25 * col)
         sizes = np.diff(self.ext_off)
         out = np.zeros(sizes.size)
@@ -142,12 +151,16 @@ class Roughness:
         starts = np.repeat(first - np.cumsum(count) + count, count) + np.arange(count.sum())
         ids = np.repeat(np.arange(prims.size), count)
         out = np.zeros(prims.size)
+        d = self.ext.shape[1]
         for g0 in range(0, starts.size, 1 << 14):  # blocks of windows: bounded temporaries
-            w = windows[starts[g0 : g0 + (1 << 14)]]
-            w = w - w.mean(axis=2, keepdims=True)
-            res = w - (w @ basis) @ basis.T
-            val = phi * np.sqrt(np.einsum("mdl,mdl->m", res, res))
-            val += _G * math.sqrt(k) * np.linalg.norm(w @ lead, axis=1)
+            # one (m·d, size) matrix: each product one BLAS call (the cubics hold the
+            # constants, so the residual and the leading coefficient need no centring)
+            w = windows[starts[g0 : g0 + (1 << 14)]].reshape(-1, size)
+            res = (w @ basis) @ basis.T
+            np.subtract(w, res, out=res)  # in place: a fresh (m·d, size) array cost 5x more
+            res *= res
+            val = phi * np.sqrt(res.reshape(-1, d * size).sum(axis=1))
+            val += _G * math.sqrt(k) * np.linalg.norm((w @ lead).reshape(-1, d), axis=1)
             seg = ids[g0 : g0 + val.size]
             cut = np.concatenate([[0], np.flatnonzero(np.diff(seg)) + 1])
             np.maximum.at(out, seg[cut], np.maximum.reduceat(val, cut))
