@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from primlib.match import BankIndex, kabsch, segment_path
 from primlib.match._interp import cubic_at
-from primlib.match._rough import BANK_MAX, Roughness, lower_bounds, query_roughness
+from primlib.match._rough import BANK_MAX, Roughness, query_roughness, rough_bounds
 from primlib.nurbs import Trajectory
 from primlib.plant import Machine
 from primlib.store import Bank
@@ -75,7 +75,7 @@ def test_the_lower_bound_never_exceeds_the_exact_rmsd(seed, k, noise):
     piece = _windows(rng, index, j, k, 0.5, 2.0, m=3)[2]
     q = piece + rng.normal(size=piece.shape) * noise + rng.normal(size=3) * 50
     # steps = (k − 1): h of a window at time scale s is s, so (0.5, 2) is the range drawn
-    lb = lower_bounds(Roughness(index.points, index.offsets), q, k - 1.0, (0.5, 2.0), eps=0.0)
+    lb = rough_bounds(Roughness(index.points, index.offsets), q, k - 1.0, (0.5, 2.0), eps=0.0)
     assert lb is not None
     for r in range(index.k):
         w = _windows(rng, index, r, k, 0.5, 2.0)
@@ -103,7 +103,7 @@ def test_a_smooth_piece_asks_for_nothing_and_a_large_bank_builds_no_table():
     index = _bank(rng, 3)
     smooth = index.points_of(2)[10:22]
     assert query_roughness(smooth[:4]) == 0.0
-    assert lower_bounds(index.roughness(), smooth, 11.0, (0.25, 4.0), eps=1.0) is None
+    assert rough_bounds(index.roughness(), smooth, 11.0, (0.25, 4.0), eps=1.0) is None
     big = BankIndex(Bank.from_samples([np.zeros((BANK_MAX + 1, 3))], dt=0.01))
     assert big.roughness() is None
 

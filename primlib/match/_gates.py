@@ -31,7 +31,7 @@ class Gates:
     @classmethod
     def of(cls, aq: ArcQuery, eps: float, skip: np.ndarray | None = None) -> Gates:
         """The gates of query ``aq``; no window of a primitive that ``skip`` (k,) marks
-        (one no window of which can be within eps, :func:`._rough.lower_bounds`) valid."""
+        (one no window of which can be within eps, :func:`._rough.rough_bounds`) valid."""
         # a stored copy starts within half a base step of some window start, which moves
         # every arc sample by at most that: its window's shape RMSD is below the gate; the
         # copy is within eps + smoothing (+ the stored window's own) of what the index holds

@@ -75,7 +75,7 @@ from primlib.match._grid import GridSearch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import CandidatePool, best_and_ties, suppress
 from primlib.match._rescan import rescan
-from primlib.match._rough import K_MAX, lower_bounds
+from primlib.match._rough import K_MAX, rough_bounds
 from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, wiggly
 
 __all__ = ["IndexSearch", "ArcQuery"]
@@ -323,13 +323,13 @@ class IndexSearch:
     def _rough_skip(self, path: PathPiece, a: float, b: float, eps: float) -> np.ndarray | None:
         """The primitives no window of which can be within eps of the piece's samples (the
         check's, :meth:`._segment._Segmenter.probe`) by its roughness
-        (:func:`._rough.lower_bounds`; a noisy piece), or None."""
+        (:func:`._rough.rough_bounds`; a noisy piece), or None."""
         kc = path.confirm_points(a, b)
         if not 5 <= kc <= K_MAX:
             return None
         q = path.at(np.linspace(a, b, kc))
         steps = (b - a) * path.duration / self.bank.dt
-        lb = lower_bounds(self.bank.roughness(), q, steps, self.opts.time_scale, eps)
+        lb = rough_bounds(self.bank.roughness(), q, steps, self.opts.time_scale, eps)
         return None if lb is None else lb >= eps * (1.0 + 1e-9)
 
     def _best_first(self, aq: ArcQuery, gates: _Gates) -> CandidatePool:

@@ -92,7 +92,7 @@ def rejects(env: Envelope, q: np.ndarray, samples: float, low: float, rotation: 
             eps: float, more: np.ndarray | None = None) -> bool:  # fmt: skip
     """True when no primitive can be within ``eps`` of the piece ``q`` (K, d), which lasts
     ``samples`` sample steps, at time scales >= ``low`` (module notes); ``more``: other lower
-    bounds per primitive (:func:`._rough.lower_bounds`), or None."""
+    bounds per primitive (:func:`._rough.rough_bounds`), or None."""
     lb = lower_bounds(env, q, rotation)
     if more is not None:
         lb = np.maximum(lb, more)

@@ -55,7 +55,7 @@ import math
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-__all__ = ["Roughness", "query_roughness", "lower_bounds", "K_MAX", "BANK_MAX"]
+__all__ = ["Roughness", "query_roughness", "rough_bounds", "K_MAX", "BANK_MAX"]
 
 K_MAX = 16  # samples of the longest piece tried
 BANK_MAX = 1 << 17  # stored samples of the largest bank tried
@@ -95,13 +95,13 @@ class Roughness:
     computed once and kept."""
 
     def __init__(self, points: np.ndarray, offsets: np.ndarray) -> None:
-        self.offsets = np.asarray(offsets, dtype=np.int64)
-        counts = np.diff(self.offsets)
+        offsets = np.asarray(offsets, dtype=np.int64)
+        counts = np.diff(offsets)
         size = counts + 2  # the extended samples: a ghost before and after each primitive
         self.ext_off = np.concatenate([[0], np.cumsum(size)])
         local = np.arange(self.ext_off[-1]) - np.repeat(self.ext_off[:-1], size) - 1
         last = np.repeat(np.maximum(counts - 1, 0), size)
-        rows = np.repeat(self.offsets[:-1], size) + np.clip(local, 0, last)
+        rows = np.repeat(offsets[:-1], size) + np.clip(local, 0, last)
         self.ext = np.ascontiguousarray(points[rows])
         self.scale = float(np.abs(points).max()) if points.size else 0.0
         self._bins: dict[tuple[int, int], np.ndarray] = {}
@@ -144,7 +144,7 @@ class Roughness:
         t = np.arange(size, dtype=float) - 0.5 * (size - 1)
         vander = np.vander(t, 4, increasing=True)
         lead = np.linalg.pinv(vander)[3]  # the t³ coefficient of the least-squares cubic
-        basis = np.linalg.qr(vander)[0]
+        basis = _basis(size)
         windows = sliding_window_view(self.ext, size, axis=0)  # (rows − size + 1, d, size)
         first = self.ext_off[prims]
         count = self.ext_off[prims + 1] - first - size + 1
@@ -167,7 +167,7 @@ class Roughness:
         return out
 
 
-def lower_bounds(rough: Roughness | None, q: np.ndarray, steps: float,
+def rough_bounds(rough: Roughness | None, q: np.ndarray, steps: float,
                  time_scale: tuple[float, float], eps: float) -> np.ndarray | None:  # fmt: skip
     """(‖(I − P) q‖ − R_j)/√K for every primitive j (module notes): a lower bound on the
     RMSD of any of its windows against the piece ``q`` (K, d), which lasts ``steps`` sample

@@ -86,7 +86,7 @@ from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchSt
 from primlib.match._refine import piece_rmsd, prim_at
 from primlib.match._refine_many import refine_many
 from primlib.match._reject import rejects
-from primlib.match._rough import lower_bounds
+from primlib.match._rough import rough_bounds
 from primlib.match._screen import SlopeRanges, prefixes_fail
 from primlib.match._types import Segment
 
@@ -211,7 +211,7 @@ class _Segmenter:
             return None, np.inf
         kc = self.path.confirm_points(a, b)
         q = self.path.at(np.linspace(a, b, kc))
-        rough = lower_bounds(self.bank.roughness(), q, steps, self.opts.time_scale, self.eps)
+        rough = rough_bounds(self.bank.roughness(), q, steps, self.opts.time_scale, self.eps)
         if rejects(env, q, steps, low, self.opts.rotation, self.eps, rough):
             self.rejected += 1  # no primitive can be within eps: the exact check would say so
             return None, np.inf
