@@ -11,7 +11,13 @@ from hypothesis import strategies as st
 
 from primlib.match import BankIndex, kabsch, segment_path
 from primlib.match._interp import cubic_at
-from primlib.match._rough import BANK_MAX, Roughness, query_roughness, rough_bounds
+from primlib.match._rough import (
+    BANK_MAX,
+    Roughness,
+    query_roughness,
+    rough_bounds,
+    rough_scales,
+)
 from primlib.nurbs import Trajectory
 from primlib.plant import Machine
 from primlib.store import Bank
@@ -84,6 +90,33 @@ def test_the_lower_bound_never_exceeds_the_exact_rmsd(seed, k, noise):
         for rotation in ("full", "none", "z"):
             exact = kabsch(w, np.broadcast_to(q, w.shape), rotation=rotation).rmsd
             assert np.all(lb[r] <= exact), (rotation, r, lb[r], exact.min())
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(5, 16), noise=st.floats(0.05, 3.0),
+       share=st.floats(0.3, 0.9))  # fmt: skip
+def test_no_window_outside_a_primitives_time_scales_is_within_eps(seed, k, noise, share):
+    # the time scales rough_scales keeps per primitive: every window at a time scale outside
+    # them is at least eps from the piece (any rotation), and a primitive keeps none exactly
+    # where the bound over the whole range excludes it
+    rng = np.random.default_rng(seed)
+    index = _bank(rng, 3)
+    j = int(rng.integers(1, index.k))
+    piece = _windows(rng, index, j, k, 0.5, 2.0, m=3)[2]
+    q = piece + rng.normal(size=piece.shape) * noise
+    eps = share * query_roughness(q) / np.sqrt(k)  # rough enough to narrow something
+    rough = Roughness(index.points, index.offsets)
+    lo, hi = rough_scales(rough, q, k - 1.0, (0.25, 4.0), eps)  # h of a window = its scale
+    lb = rough_bounds(rough, q, k - 1.0, (0.25, 4.0), eps)
+    assert np.array_equal(lo > hi, lb >= eps * (1 + 1e-9))
+    for r in range(index.k):
+        assert lo[r] > hi[r] or 0.25 <= lo[r] <= hi[r] <= 4.0
+        for a, b in ((0.25, min(lo[r], 4.0)), (max(hi[r], 0.25), 4.0)):
+            w = _windows(rng, index, r, k, a, b) if b > a * (1 + 1e-6) else None
+            if w is None:
+                continue
+            exact = kabsch(w, np.broadcast_to(q, w.shape), rotation="full").rmsd
+            assert np.all(exact >= eps * (1 - 1e-9)), (r, a, b, exact.min(), eps)
 
 
 def test_catmull_rom_holds_quadratics_and_misses_a_cubic_by_the_periodic_error():

@@ -75,7 +75,7 @@ from primlib.match._grid import GridSearch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
 from primlib.match._pool import CandidatePool, best_and_ties, suppress
 from primlib.match._rescan import rescan
-from primlib.match._rough import K_MAX, rough_bounds
+from primlib.match._rough import K_MAX, rough_scales
 from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, wiggly
 
 __all__ = ["IndexSearch", "ArcQuery"]
@@ -240,7 +240,8 @@ class IndexSearch:
             c0, c1 = ws  # slices: the screen's blocks
             x0 = lv.x[c0:c1]
             xa, xb = lv.x[c0 + off : c1 + off], lv.x[c0 + off + 1 : c1 + off + 1]
-            inside = lv.prim[c0 + off + 1 : c1 + off + 1] == lv.prim[c0:c1]
+            prim = lv.prim[c0:c1]
+            inside = lv.prim[c0 + off + 1 : c1 + off + 1] == prim
         else:
             if isinstance(ws, tuple):
                 ws = np.arange(*ws)
@@ -249,23 +250,28 @@ class IndexSearch:
             i0 -= over
             frac = frac + over
             x0, xa, xb = lv.x[ws], lv.x[i0], lv.x[i0 + 1]
-            inside = lv.prim[i0 + 1] == lv.prim[ws]
+            prim = lv.prim[ws]
+            inside = lv.prim[i0 + 1] == prim
         x_end = xa + frac * (xb - xa)
         if screen:
             # the screen: a window whose end crosses its primitive's last level point (a few
             # per block) stays, for the exact test of the batch that scores it
-            return self._scale_ok((x_end - x0) / aq.duration) | ~inside, x_end
+            return self._scale_ok(aq, (x_end - x0) / aq.duration, prim) | ~inside, x_end
         fix = ~inside
         if np.any(fix):
             at = np.flatnonzero(fix)
             start = at + ws[0] if isinstance(ws, tuple) else ws[at]
             x_end[at] = aq.index.arc_to_sample(lv.garc[start] + aq.ell, lv.prim[start])
-        return self._scale_ok((x_end - x0) / aq.duration), x_end
+        return self._scale_ok(aq, (x_end - x0) / aq.duration, prim), x_end
 
-    def _scale_ok(self, scale: np.ndarray) -> np.ndarray:
-        """Whether each time scale is in the range, with :meth:`in_range`'s 10 % slack (the
-        screen and the exact test must agree on it)."""
-        lo, hi = self.opts.time_scale
+    def _scale_ok(self, aq: ArcQuery, scale: np.ndarray, prim: np.ndarray) -> np.ndarray:
+        """Whether each time scale (of a window of primitive ``prim``) is in the range, with
+        :meth:`in_range`'s 10 % slack (the screen and the exact test must agree on it): the
+        options' range, or each primitive's within it where the piece's roughness narrows
+        it (:meth:`_rough_skip`)."""
+        lo, hi = aq.memo.get("scales", self.opts.time_scale)
+        if isinstance(lo, np.ndarray):
+            lo, hi = lo[prim], hi[prim]
         return (scale >= lo / 1.1) & (scale <= hi * 1.1)
 
     def score(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -310,7 +316,7 @@ class IndexSearch:
         if aq.n_windows <= 0:
             return []
         self.stats.queries += 1
-        gates = _Gates.of(aq, eps, self._rough_skip(path, a, b, eps))
+        gates = _Gates.of(aq, eps, self._rough_skip(aq, path, a, b, eps))
         pool = self._best_first(aq, gates)
         if pool.keys.size == 0:
             return []
@@ -320,17 +326,22 @@ class IndexSearch:
         top = 2 * self.opts.seeds
         return rescan(self.bank, seeds[:top], path, a, b, self.opts) + seeds[top:]
 
-    def _rough_skip(self, path: PathPiece, a: float, b: float, eps: float) -> np.ndarray | None:
+    def _rough_skip(self, aq: ArcQuery, path: PathPiece, a: float, b: float,
+                    eps: float) -> np.ndarray | None:  # fmt: skip
         """The primitives no window of which can be within eps of the piece's samples (the
-        check's, :meth:`._segment._Segmenter.probe`) by its roughness
-        (:func:`._rough.rough_bounds`; a noisy piece), or None."""
+        check's, :meth:`._segment._Segmenter.probe`) by its roughness, or None; the time
+        scales where the others' can be go to ``aq.memo["scales"]``, which
+        :meth:`in_range` keeps to (:func:`._rough.rough_scales`; a noisy piece)."""
         kc = path.confirm_points(a, b)
         if not 5 <= kc <= K_MAX:
             return None
         q = path.at(np.linspace(a, b, kc))
         steps = (b - a) * path.duration / self.bank.dt
-        lb = rough_bounds(self.bank.roughness(), q, steps, self.opts.time_scale, eps)
-        return None if lb is None else lb >= eps * (1.0 + 1e-9)
+        scales = rough_scales(self.bank.roughness(), q, steps, self.opts.time_scale, eps)
+        if scales is None:
+            return None
+        aq.memo["scales"] = scales
+        return scales[0] > scales[1]
 
     def _best_first(self, aq: ArcQuery, gates: _Gates) -> CandidatePool:
         """Score windows best-first in order of lower bounds until none left can enter the

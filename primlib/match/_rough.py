@@ -55,7 +55,7 @@ import math
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-__all__ = ["Roughness", "query_roughness", "rough_bounds", "K_MAX", "BANK_MAX"]
+__all__ = ["Roughness", "query_roughness", "rough_bounds", "rough_scales", "K_MAX", "BANK_MAX"]
 
 K_MAX = 16  # samples of the longest piece tried
 BANK_MAX = 1 << 17  # stored samples of the largest bank tried
@@ -108,18 +108,22 @@ class Roughness:
 
     def bound(self, k: int, h_lo: float, h_hi: float) -> np.ndarray:
         """R_j of every primitive for K = ``k`` samples and h in [h_lo, h_hi], shape (k,)."""
+        return np.maximum.reduce([r for _, _, r in self.bins(k, h_lo, h_hi)])
+
+    def bins(self, k: int, h_lo: float, h_hi: float) -> list[tuple[float, float, np.ndarray]]:
+        """(h0, h1, R_j of every primitive) of each bin [h0, h1] that h in [h_lo, h_hi]
+        falls in, lowest first (each bin holds h up to a relative 1e-9 past its edges)."""
         # each bin holds h up to (1 + 1e-9) its top (:meth:`_bin`): a range that ends on a
         # bin's edge but for round-off (h at time scale 4 is 4·(1 + ε) when the path's dt is
         # the bank's) asks for no bin beyond, whose supports are twice as long
         b0 = math.floor(_BINS * math.log2(h_lo / _SHIFT) + _EDGE)
         b1 = max(math.ceil(_BINS * math.log2(h_hi / _SHIFT) - _EDGE), b0 + 1)
-        out = np.zeros(self.ext_off.size - 1)
+        out = []
         for b in range(b0, b1):
-            key = (k, b)
-            if key not in self._bins:
-                edges = _SHIFT * 2.0 ** (b / _BINS), _SHIFT * 2.0 ** ((b + 1) / _BINS)
-                self._bins[key] = self._bin(k, *edges)
-            np.maximum(out, self._bins[key], out=out)
+            edges = _SHIFT * 2.0 ** (b / _BINS), _SHIFT * 2.0 ** ((b + 1) / _BINS)
+            if (k, b) not in self._bins:
+                self._bins[(k, b)] = self._bin(k, *edges)
+            out.append((*edges, self._bins[(k, b)]))
         return out
 
     def _bin(self, k: int, h0: float, h1: float) -> np.ndarray:
@@ -173,11 +177,42 @@ def rough_bounds(rough: Roughness | None, q: np.ndarray, steps: float,
     RMSD of any of its windows against the piece ``q`` (K, d), which lasts ``steps`` sample
     steps of the bank, at time scales in ``time_scale``; None where it cannot exclude any
     (no bank table, K outside 5 ... ``K_MAX``, or a piece smooth to within eps)."""
-    k = q.shape[0]
-    if rough is None or not 5 <= k <= K_MAX:
-        return None
-    rq = query_roughness(q)
-    if rq < eps * math.sqrt(k):
+    k, rq = q.shape[0], _rough_query(rough, q, eps)
+    if rq is None:
         return None
     per = steps / (k - 1)  # h of a window at time scale 1
     return (rq - rough.bound(k, time_scale[0] * per, time_scale[1] * per)) / math.sqrt(k)
+
+
+def rough_scales(rough: Roughness | None, q: np.ndarray, steps: float,
+                 time_scale: tuple[float, float],
+                 eps: float) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
+    """Per primitive j, the time scales [lo_j, hi_j] within ``time_scale`` where one of its
+    windows may lie within eps of the piece ``q``: the hull of the bins of h where
+    (‖(I − P) q‖ − R_j)/√K < eps (module notes; lo_j > hi_j where there is none). None
+    where :func:`rough_bounds` is. A rough primitive keeps its slow windows, whose steps are
+    short, and loses the fast ones, whose supports are long."""
+    k, rq = q.shape[0], _rough_query(rough, q, eps)
+    if rq is None:
+        return None
+    per = steps / (k - 1)  # h of a window at time scale 1
+    lo, hi = time_scale
+    bins = rough.bins(k, lo * per, hi * per)
+    keep = np.array([(rq - r) / math.sqrt(k) < eps * (1.0 + 1e-9) for _, _, r in bins])
+    # the first and last bin each primitive keeps (argmax on a column of False: 0, masked)
+    first, last = keep.argmax(axis=0), keep.shape[0] - 1 - keep[::-1].argmax(axis=0)
+    h0 = np.array([b[0] for b in bins]) * (1.0 - 1e-9)
+    h1 = np.array([b[1] for b in bins]) * (1.0 + 1e-9)
+    none = ~keep.any(axis=0)
+    s_lo = np.where(none, np.inf, np.maximum(h0[first] / per, lo))
+    s_hi = np.where(none, -np.inf, np.minimum(h1[last] / per, hi))
+    return s_lo, s_hi
+
+
+def _rough_query(rough: Roughness | None, q: np.ndarray, eps: float) -> float | None:
+    """‖(I − P) q‖ of the piece, or None where no primitive can be excluded by it (no bank
+    table, K outside 5 ... ``K_MAX``, or a piece smooth to within eps)."""
+    if rough is None or not 5 <= q.shape[0] <= K_MAX:
+        return None
+    rq = query_roughness(q)
+    return None if rq < eps * math.sqrt(q.shape[0]) else rq
