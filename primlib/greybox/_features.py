@@ -112,6 +112,13 @@ def axis_features(
     out[:, 0] = v
     out[:, 1] = np.gradient(v, dt)
     out[:, 2] = np.gradient(u_lin, dt)
+    # the axis rests before t = 0 (u = 0): the rise to u_lin[0] is part of the derivative,
+    # and half of it, which a central difference puts at t = -dt where no input acts, is
+    # taken at t = 0. The column's area is then u_lin's last value, as the lag's shift of
+    # the input leaves it; the one-sided difference dropped the rise, and on a path already
+    # moving at t = 0 (u_lin[0] the impulse that starts it) the lag term took that impulse's
+    # share away, which an integrating axis kept as an offset (127 mm on a 12 s novel path)
+    out[0, 2] = (u_lin[1] + u_lin[0]) / (2.0 * dt)
     if speed > 0:
         out[:, 3] = np.tanh(v / (COULOMB_FRACTION * speed))
         out[:, 4] = np.sign(v) * np.exp(-np.abs(v) / (STRIBECK_FRACTION * speed))
