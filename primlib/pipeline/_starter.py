@@ -30,6 +30,7 @@ from primlib.pipeline._greywarm import (
     linear_parts,
     pair_errors,
     ripple_shifts,
+    start_floor,
 )
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
@@ -409,10 +410,10 @@ def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
     # model where the gap said 1e-7, and the warm start took the model-only input, 2.2e-5 on
     # the machine, over a stored signal of 4.5e-7); else the linear inverse's gap
     gap = model_residual(gb, ref, model_u, origin) if np.isfinite(after) else None
+    gap = gb.inverse_gap(ref, u_lin) if gap is None else gap
     u, choices, predicted, shares = choose_per_segment(
-        gb, bank, res.segments, res.sample_segment, res.u + non, model_u,
-        gb.inverse_gap(ref, u_lin) if gap is None else gap,
-        ripple_shifts(gb, bank, res.segments, origin, pts[0]),
+        gb, bank, res.segments, res.sample_segment, res.u + non, model_u, gap,
+        ripple_shifts(gb, bank, res.segments, origin, pts[0]), start_floor(gap),
     )  # fmt: skip
     base = _warm_start_result(res, m, match, model)
     used = [
