@@ -133,9 +133,8 @@ class GreyBox:
         non = np.zeros_like(y)
         for i in range(self.machine.dim):
             pos = None if org is None else y[:, i] + org[i]
-            F = axis_features(
-                y[:, i], u_lin[:, i], self.machine.dt, self.speed[i], pos, self.w[i], self._hard(i)
-            )
+            F = axis_features(y[:, i], u_lin[:, i], self.machine.dt, self.speed[i], pos,
+                              self.w[i], self._hard(i), from_rest=True)  # fmt: skip
             lin[:, i] = F[:, LIN] @ self.coef[i, LIN]
             non[:, i] = F[:, NONLIN] @ self.coef[i, NONLIN]
         return u_lin, lin, non
