@@ -75,16 +75,17 @@ def test_the_ripple_columns_are_their_mean_over_each_interval():
     np.testing.assert_allclose(cols[:-1, 1], np.cos(w * dense).mean(axis=0), atol=1e-6)
 
 
+def _changed(nom: Machine, name: str, den_of) -> Machine:
+    """``nom`` with each axis's denominator replaced by ``den_of(den)``."""
+    plants = {a: (num, den_of(den)) for a, (num, den) in nom.plants.items()}
+    return Machine(name, nom.dt, nom.axes, plants)
+
+
 def test_nothing_is_invented_on_a_linear_machine():
     # the machine is its nominal model with 10 % more mass; stored inputs carry noise that
     # ILC learned: the fit may correct the linear terms but adds no friction and no ripple
     nom = _nominal()
-    heavy = Machine(
-        "heavy",
-        nom.dt,
-        nom.axes,
-        {a: (num, [den[0] * 1.1, *den[1:]]) for a, (num, den) in nom.plants.items()},
-    )
+    heavy = _changed(nom, "heavy", lambda den: [den[0] * 1.1, *den[1:]])
     rng = np.random.default_rng(3)
     pairs = []
     for k, origin in enumerate([(0.0, 0.0), (50.0, 20.0), (90.0, 70.0)]):
@@ -415,12 +416,7 @@ def test_the_lag_term_keeps_the_impulse_that_starts_a_path_already_moving():
     # input, not its area, so the term must leave that impulse whole: a derivative without
     # the rise from rest took tau u[0] / dt of it away, an offset the integrating axis kept
     nom = _nominal()
-    lagged = Machine(
-        "lagged",
-        nom.dt,
-        nom.axes,
-        {a: (num, np.convolve(den, [0.012, 1.0])) for a, (num, den) in nom.plants.items()},
-    )
+    lagged = _changed(nom, "lagged", lambda den: np.convolve(den, [0.012, 1.0]))
     pairs = [
         Pair(invert(lagged, path), path, (0.0, 0.0))
         for path in (_loop(1001, 10.0, 1.0, 0.3), _loop(1201, 12.0, 1.5, 1.7))
