@@ -367,6 +367,11 @@ def _predictions(gb: GreyBox, bank: Bank, segments, shifts):
     mismatch = model_error(gb, bank)
     mismatch_lo = model_error(gb, bank, ERROR_SPREAD)
     own = stored_errors(bank)
+    # a library that records no stored signal's worth (primitives added without error_rms)
+    # says nothing a transformed one could earn its place by: the model-only input is kept
+    # there (taken to be exact, they had made novel paths' warm starts 3-52x the model-only
+    # input past their start on bench_warm_start.py's machine)
+    recorded = bool(np.any(np.isfinite(np.asarray(bank.errors, dtype=float))))
     # in place, the model's mismatch on the primitive's own motion (pair_mismatch)
     here, here_lo = pair_mismatch(gb, bank), pair_mismatch(gb, bank, ERROR_SPREAD)
     row = {int(i): k for k, i in enumerate(np.asarray(bank.ids))}
@@ -381,7 +386,9 @@ def _predictions(gb: GreyBox, bank: Bank, segments, shifts):
         stored_err, stored_hi, moved = np.inf, np.inf, _transformed(seg)
         if seg.primitive is not None:
             e = own.get(int(seg.primitive), 0.0)
-            if moved:  # superposition carries the model's mismatch, not its inverse's gap
+            if moved and not recorded:
+                pass  # worth unknown: inf, the model-only input
+            elif moved:  # superposition carries the model's mismatch, not its inverse's gap
                 stored_err = max(e, lin_err if nonlinear else mismatch)
                 stored_hi = max(ERROR_SPREAD * e, lin_err if nonlinear else mismatch_lo)
             else:
