@@ -319,7 +319,9 @@ def choose_per_segment(
     :func:`_weight`'s of bounds: the recorded errors taken :data:`ERROR_SPREAD` times larger
     and the mismatch (``model_error`` or ``pair_mismatch`` with ``spread=ERROR_SPREAD``) then
     left; where the shares change between segments the inputs are blended over a band of
-    ``BAND_SAMPLES``.
+    ``BAND_SAMPLES``. ``floor`` (:func:`start_floor`; None: none) is what the path's own
+    start leaves whatever the input: the stored signal's prediction carries it too, unless
+    the piece is its primitive from its first sample, neither rotated nor time-scaled.
 
     Returns
     -------
