@@ -220,3 +220,16 @@ def test_residual_correction_beats_the_model_inverse_on_a_different_machine(xyz)
     # refined on the library's pairs the model is the machine's family: far better still
     refined = lib.warm_start(traj, "xyz", 0.005)
     assert rms(refined.u) < rms(warm.u) / 20
+
+
+def test_without_records_a_transformed_piece_takes_the_model_and_says_why(lib):
+    # the library records no stored signal's worth (added without error_rms): a rotated
+    # stored piece cannot earn its place over the model-only input, and the warm start says so
+    prim = lib.get(lib.primitives("xyz")[0].id)
+    c, s = np.cos(0.6), np.sin(0.6)
+    pts = prim.trajectory.sample(DT) @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]).T
+    ws = lib.warm_start(Trajectory.from_samples(pts, DT), machine="xyz", eps=0.01)
+    assert ws.match.segments[0].primitive == prim.id
+    assert ws.choices[0] == "model"
+    assert "records no stored signal's worth" in ws.sources[0]
+    np.testing.assert_array_equal(ws.u, ws.model_u)

@@ -454,7 +454,10 @@ def _choice_text(choice: str, predicted: tuple[float, float], share: float, seg)
     """Why a segment uses what it uses, in one clause."""
     stored, model = predicted
     if not np.isfinite(stored):
-        return f"model-only input (nothing stored matched; predicted output error {model:.3g})"
+        why = "nothing stored matched"
+        if seg.primitive is not None:
+            why = "rotated or time-scaled, and the library records no stored signal's worth"
+        return f"model-only input ({why}; predicted output error {model:.3g})"
     what = {
         "stored": "stored signal carried over",
         "model": "model-only input",
