@@ -293,6 +293,7 @@ def choose_per_segment(
     gap: np.ndarray | None = None,
     shifts: np.ndarray | None = None,
     floor: np.ndarray | None = None,
+    nominal: bool = False,
 ) -> tuple[np.ndarray, tuple[str, ...], tuple[tuple[float, float], ...], tuple[float, ...]]:
     """Per segment the stored signal, the model-only input or their mix, by predicted error.
 
@@ -322,6 +323,7 @@ def choose_per_segment(
     ``BAND_SAMPLES``. ``floor`` (:func:`start_floor`; None: none) is what the path's own
     start leaves whatever the input: the stored signal's prediction carries it too, unless
     the piece is its primitive from its first sample, neither rotated nor time-scaled.
+    ``nominal``: the splice used the unrefined model (transformed: ``rms_nominal``).
 
     Returns
     -------
@@ -339,7 +341,7 @@ def choose_per_segment(
     weight = np.zeros(u_model.shape[0])
     choices, predicted, shares = [], [], []
     for j, (stored_err, stored_hi, m, m_lo, moved) in enumerate(
-        _predictions(gb, bank, segments, shifts)
+        _predictions(gb, bank, segments, shifts, nominal)
     ):
         on = sample_segment == j
         g2 = float(np.mean(gap2[on])) if np.any(on) else 0.0
@@ -363,9 +365,10 @@ def choose_per_segment(
     return w * u_stored + (1 - w) * u_model, tuple(choices), tuple(predicted), tuple(shares)
 
 
-def _predictions(gb: GreyBox, bank: Bank, segments, shifts):
+def _predictions(gb: GreyBox, bank: Bank, segments, shifts, nominal: bool = False):
     """Per segment (stored signal's predicted error, its upper bound, the model's mismatch,
-    its lower bound, transformed) as :func:`choose_per_segment` says, the gap left out."""
+    its lower bound, transformed) as :func:`choose_per_segment` says, the gap left out;
+    ``nominal``: the splice carries the stored signals through the unrefined model."""
     mismatch = model_error(gb, bank)
     mismatch_lo = model_error(gb, bank, ERROR_SPREAD)
     own = stored_errors(bank)
@@ -380,7 +383,11 @@ def _predictions(gb: GreyBox, bank: Bank, segments, shifts):
     # what a transformed stored signal may carry wrongly: on a machine the data show to be
     # linear what the model misses (superposition goes through it); where the model needed
     # nonlinear terms, up to all the linear model alone misses
-    nonlinear = bool(np.any(gb.coef[:, _NONLINEAR_TERMS] != 0))
+    # (and where the splice carries them through the unrefined model, what that model
+    # misses: judged by the grey-box model's mismatch instead, the composed paths of
+    # bench_warm_start.py kept stored signals that left 0.287 mm for a model-only input's
+    # 0.00125)
+    wide = nominal or bool(np.any(gb.coef[:, _NONLINEAR_TERMS] != 0))
     lin_err = float(np.sqrt(np.sum(gb.rms_nominal**2)))
     out = []
     for j, seg in enumerate(segments):
@@ -391,8 +398,8 @@ def _predictions(gb: GreyBox, bank: Bank, segments, shifts):
             if moved and not recorded:
                 pass  # worth unknown: inf, the model-only input
             elif moved:  # superposition carries the model's mismatch, not its inverse's gap
-                stored_err = max(e, lin_err if nonlinear else mismatch)
-                stored_hi = max(ERROR_SPREAD * e, lin_err if nonlinear else mismatch_lo)
+                stored_err = max(e, lin_err if wide else mismatch)
+                stored_hi = max(ERROR_SPREAD * e, lin_err if wide else mismatch_lo)
             else:
                 shifted = shifts is not None and shifts[j] > _MOVED_PHASE
                 stored_err, stored_hi = _in_place(e, mismatch if shifted else 0.0)

@@ -414,6 +414,7 @@ def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
     u, choices, predicted, shares = choose_per_segment(
         gb, bank, res.segments, res.sample_segment, res.u + non, model_u, gap,
         ripple_shifts(gb, bank, res.segments, origin, pts[0]), start_floor(gap),
+        nominal=model is None,
     )  # fmt: skip
     base = _warm_start_result(res, m, match, model)
     used = [
