@@ -38,13 +38,18 @@ __all__ = [
     "pair_errors",
     "pair_mismatch",
     "ripple_shifts",
-    "start_floor",
     "stored_errors",
 ]
 
 _NONLINEAR_TERMS = [TERMS.index(t) for t in NONLINEAR + POSITION]
-# samples of a path's start over which its own start is judged (start_floor): the stable
-# inverse's pre-actuation decays within the start correction's span (256 at most)
+# samples of a path's start where the model-only input's gap is the start's own, missed by
+# every input (choose_per_segment). A path already moving at t = 0 asks a model with a zero
+# outside the unit circle (the XYZ axes once a lag is found) for input before t = 0, which no
+# input has; the model-only input's start is corrected by least squares over its first
+# samples (primlib.plant.invert's correct_start, whose span is 256 at most), so what it still
+# misses there a stored signal misses as much (on a 12 s novel path that starts moving, 0.055
+# mm RMS over the first segment, which its stored signal was predicted to make at 7e-5 and
+# did not). On a path that starts at rest the gap there is the sampling zeros' band, ~1e-5 mm
 _START_SAMPLES = 256
 _POSITION_TERMS = [TERMS.index(t) for t in POSITION]
 # a translation that moves the ripple's phase by more than this (rad) carries the ripple
@@ -264,25 +269,6 @@ def _in_place(e: float, mismatch: float) -> tuple[float, float]:
     return float(np.hypot(e, moved)), float(np.hypot(ERROR_SPREAD * e, moved))
 
 
-def start_floor(gap: np.ndarray) -> np.ndarray:
-    """What the path's own start leaves of it whatever the input, shape (n, d): ``gap`` (the
-    model-only input's shortfall where the model is the machine) over the first
-    ``_START_SAMPLES`` samples, nothing after.
-
-    A path already moving at t = 0 (a velocity, an acceleration the axis at rest has not)
-    asks a model with a zero outside the unit circle (the XYZ axes once a lag is found) for
-    input before t = 0, which no input has. The model-only input's start is corrected by
-    least squares over its first samples (:func:`primlib.plant.invert`'s
-    ``correct_start``), so what it still misses there is the start's own: a stored signal
-    misses it just as much (on a 12 s novel path that starts moving, 0.055 mm RMS over the
-    first segment, which its stored signal was predicted to make at 7e-5 and did not). On a
-    path that starts at rest the gap there is the sampling zeros' band, ~1e-5 mm.
-    """
-    out = np.array(gap, dtype=float)
-    out[_START_SAMPLES:] = 0.0
-    return out
-
-
 def choose_per_segment(
     gb: GreyBox,
     bank: Bank,
@@ -292,7 +278,6 @@ def choose_per_segment(
     u_model: np.ndarray,
     gap: np.ndarray | None = None,
     shifts: np.ndarray | None = None,
-    floor: np.ndarray | None = None,
     nominal: bool = False,
 ) -> tuple[np.ndarray, tuple[str, ...], tuple[tuple[float, float], ...], tuple[float, ...]]:
     """Per segment the stored signal, the model-only input or their mix, by predicted error.
@@ -320,9 +305,9 @@ def choose_per_segment(
     :func:`_weight`'s of bounds: the recorded errors taken :data:`ERROR_SPREAD` times larger
     and the mismatch (``model_error`` or ``pair_mismatch`` with ``spread=ERROR_SPREAD``) then
     left; where the shares change between segments the inputs are blended over a band of
-    ``BAND_SAMPLES``. ``floor`` (:func:`start_floor`; None: none) is what the path's own
-    start leaves whatever the input: the stored signal's prediction carries it too, unless
-    the piece is its primitive from its first sample, neither rotated nor time-scaled.
+    ``BAND_SAMPLES``. Over the path's first ``_START_SAMPLES`` samples the gap is the
+    start's own, left whatever the input: the stored signal's prediction carries it too,
+    unless the piece is its primitive from its first sample, neither rotated nor time-scaled.
     ``nominal``: the splice used the unrefined model (transformed: ``rms_nominal``).
 
     Returns
@@ -337,7 +322,8 @@ def choose_per_segment(
         Per segment the stored signal's share.
     """
     gap2 = np.zeros(u_model.shape[0]) if gap is None else np.sum(gap**2, axis=1)
-    floor2 = np.zeros(u_model.shape[0]) if floor is None else np.sum(floor**2, axis=1)
+    floor2 = gap2.copy()  # the start's own part of the gap (_START_SAMPLES)
+    floor2[_START_SAMPLES:] = 0.0
     weight = np.zeros(u_model.shape[0])
     choices, predicted, shares = [], [], []
     for j, (stored_err, stored_hi, m, m_lo, moved) in enumerate(
@@ -347,7 +333,7 @@ def choose_per_segment(
         g2 = float(np.mean(gap2[on])) if np.any(on) else 0.0
         f = float(np.sqrt(np.mean(floor2[on]))) if np.any(on) else 0.0
         model_err, model_lo = np.sqrt(m**2 + g2), np.sqrt(m_lo**2 + g2)
-        # the path's own start, missed by every input (start_floor): the stored signal too,
+        # the path's own start, missed by every input (floor2): the stored signal too,
         # unless it made this very start where it ran (its primitive from its first sample,
         # neither rotated nor time-scaled: its recorded error holds it)
         if moved or segments[j].primitive_start > 1e-9:

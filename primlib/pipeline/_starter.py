@@ -30,7 +30,6 @@ from primlib.pipeline._greywarm import (
     linear_parts,
     pair_errors,
     ripple_shifts,
-    start_floor,
 )
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
 from primlib.pipeline._warm import WarmStart, stored_signals
@@ -413,7 +412,7 @@ def _grey_result(res, m, match, model, gb, bank, pts, origin) -> WarmStart:
     gap = gb.inverse_gap(ref, u_lin) if gap is None else gap
     u, choices, predicted, shares = choose_per_segment(
         gb, bank, res.segments, res.sample_segment, res.u + non, model_u, gap,
-        ripple_shifts(gb, bank, res.segments, origin, pts[0]), start_floor(gap),
+        ripple_shifts(gb, bank, res.segments, origin, pts[0]),
         nominal=model is None,
     )  # fmt: skip
     base = _warm_start_result(res, m, match, model)
