@@ -79,7 +79,8 @@ sys.path.insert(0, str(ROOT / "scripts"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import build_example_library as ex  # noqa: E402
-from bench_warm_start import make_paths, true_machine  # noqa: E402
+from bench_match_novel import _walk  # noqa: E402
+from bench_warm_start import AFTER, make_paths, true_machine  # noqa: E402
 
 from primlib.ilc import ConvergenceWarning, TrialLearner  # noqa: E402
 from primlib.nurbs import Trajectory  # noqa: E402
@@ -105,6 +106,7 @@ SETTINGS["all"] = {k: v for s in list(SETTINGS.values()) for k, v in s.items()} 
 }
 STARTS = ("warm", "model-only", "refined", "nominal", "cold")
 KINDS = ("in place", "translated", "rotated/scaled")
+NOVEL_STARTS = ("warm", "model-only", "refined", "nominal")
 HARD = ("friction 2 %", "friction 5 %", "ripple 2 %", "resonance 20 Hz", "all")
 EPS = 0.01  # match tolerance, mm
 _LIBRARY_TRIALS = 100  # trial numbers each primitive's series may use (its first is 100 k)
@@ -267,6 +269,64 @@ def first_inputs(lib: Library, nominal: Machine, pts: np.ndarray) -> dict[str, n
     )
 
 
+def novel_rows(lib: Library, nominal: Machine, calm, count: int) -> list[dict]:
+    """Kind (iv), beyond issue 9's three: ``count`` paths the library does not hold
+    (``bench_match_novel.py``'s smooth random 3-D paths, 2,400 samples, already moving at
+    t = 0), their box centred on the table. Per path, each first input's own error on the
+    calm machine (no noise, no disturbance: a first trial's draw is the same for every
+    input), over the whole path and past its first ``AFTER`` samples (the start, a velocity
+    step from rest that no input makes); the refined and nominal inverses with their start
+    corrected (without it an integrating axis keeps the lost start impulse as a drift)."""
+    out = []
+    for j in range(count):
+        path = _walk(np.random.default_rng(100 + j), 2400, nominal.dt, 12)
+        ref = path.sample(nominal.dt)
+        origin = np.array(TABLE) / 2 - (ref.max(axis=0) + ref.min(axis=0)) / 2 + ref[0]
+        ref = ref - ref[0]
+        ws = lib.warm_start(path, "xyz", EPS, origin=origin)
+        plain = lib.warm_start(path, "xyz", EPS, match=ws.match, greybox=False, modes=False)
+        refined = nominal if plain.model is None else plain.model.machine
+        inputs = {
+            "warm": ws.u,
+            "model-only": ws.model_u,
+            "refined": invert(refined, ref, correct_start=True),
+            "nominal": invert(nominal, ref, correct_start=True),
+        }
+        row: dict = {"whole": {}, "after": {}}
+        for s, u in inputs.items():
+            e2 = np.sum((ref - calm.simulate(u, start=origin)) ** 2, axis=1)
+            row["whole"][s] = float(np.sqrt(np.mean(e2)))
+            row["after"][s] = float(np.sqrt(np.mean(e2[AFTER:])))
+        segs = ws.match.segments
+        row["segments"] = len(segs)
+        row["matched"] = float(sum(g.end - g.start for g in segs if g.primitive is not None))
+        out.append(row)
+    return out
+
+
+def _novel_lines(name: str, rows: list[dict]) -> tuple[list[str], list[str]]:
+    """The novel paths' lines and their check (the library never does harm: warm at most
+    1.1x the model-only input on every path, whole and past the start)."""
+    if not rows:
+        return [], []
+    lines, fails = [], []
+    for part in ("whole", "after"):
+        v = {s: [r[part][s] for r in rows] for s in NOVEL_STARTS}
+        q = [w / m for w, m in zip(v["warm"], v["model-only"], strict=True)]
+        label = "novel" if part == "whole" else f"  past {AFTER} samples"
+        lines.append(
+            f"  {label:15s} own error median (worst) mm: "
+            + "  ".join(f"{s} {statistics.median(x):.3g} ({max(x):.3g})" for s, x in v.items())
+            + f" | warm/model-only median {statistics.median(q):.3f} worst {max(q):.3f}"
+        )
+        if max(q) > 1.1:
+            fails.append(f"{name}, novel ({part}): warm worse than 1.1x model-only ({max(q):.3f}x)")
+    seg = statistics.median([r["segments"] for r in rows])
+    frac = statistics.median([r["matched"] for r in rows])
+    lines.append(f"  {'':15s} {seg:g} segments, {100 * frac:.0f} % matched (median)")
+    return lines, fails
+
+
 def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
     rng = np.random.default_rng(seed)
     true = realistic(nominal, SETTINGS[name], seed)
@@ -327,6 +387,7 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
                         "reused": _reused(prim),
                     }
                 )
+        novel = novel_rows(lib, nominal, calm, args.novel)
     known = [(p["final"], p["worth"]) for p in placed if p["worth"] is not None]
     return {
         "setting": name,
@@ -334,6 +395,7 @@ def run_setting(name: str, nominal: Machine, args, seed: int) -> dict:
         "reused": bool(args.reuse_libraries),
         "rows": rows,
         "stored_error": known,
+        "novel": novel,
     }
 
 
@@ -552,7 +614,8 @@ def summarise(result: dict) -> list[str]:
             )
         if name == "linear" and med["warm"] > 1e-4:
             fails.append(f"linear, {kind}: warm {med['warm']:.3g} > 1e-4 mm")
-    return lines, fails
+    more, bad = _novel_lines(name, result.get("novel", []))
+    return lines + more, fails + bad
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -589,11 +652,18 @@ def main(argv: list[str] | None = None) -> dict:
         help="run the new paths on the libraries --save-libraries kept there (the same "
         "settings, seed and learning options), not learning them again",
     )
+    ap.add_argument(
+        "--novel",
+        type=int,
+        default=3,
+        metavar="N",
+        help="paths the library does not hold (kind iv, first trial only); 0: none",
+    )
     ap.add_argument("--quick", action="store_true", help="1 path per kind, 3 trials")
     ap.add_argument("--json", type=Path, help="write the figures here")
     args = ap.parse_args(argv)
     if args.quick:
-        args.paths, args.trials, args.library_trials = 1, 3, 6
+        args.paths, args.trials, args.library_trials, args.novel = 1, 3, 6, min(args.novel, 1)
     names = _setting_names(args.settings)
     warnings.simplefilter("ignore", ConvergenceWarning)
     nominal = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")

@@ -28,8 +28,8 @@ measured on the matched pieces' stored pairs, transformed and accumulated along 
 blended like the inputs), "junction" (least squares near the junctions on the model's
 simulated output: the previous design) and "none" (the spliced pieces as they are). The
 refined-model inverse is also shown computed the way the warm start inverts
-(primlib.splice.model_inverse: the regularised lifted solve for a sampled model with a zero
-outside the unit circle), beside the filter inverse (primlib.plant.invert).
+(primlib.splice.model_inverse: the stable filter inverse with its start corrected), beside
+the filter inverse with its pre-actuation truncated at t = 0 (primlib.plant.invert).
 
 ILC (norm-optimal, designed on the nominal model) then runs from each. Reported: median
 first-iteration RMS tracking error and contour error, their ratios, and median iterations

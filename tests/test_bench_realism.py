@@ -17,10 +17,11 @@ import bench_realism  # noqa: E402
 
 
 def _tiny(setting: str) -> dict:
-    """One path per kind, two trials per start, a library of 3 primitives of 3 trials."""
+    """One path per kind (and one novel path), two trials per start, a library of 3
+    primitives of 3 trials."""
     return bench_realism.main(
         ["--settings", setting, "--paths", "1", "--trials", "2", "--library-trials", "3",
-         "--primitives", "3"]
+         "--primitives", "3", "--novel", "1"]
     )  # fmt: skip
 
 
@@ -44,6 +45,32 @@ def test_a_tiny_run_measures_every_start_on_every_kind():
     # in place, the library's own signal is what the machine needed there
     in_place = res["rows"]["in place"][0]["first"]
     assert in_place["warm"] < in_place["nominal"] / 10
+    # a path the library does not hold: every input measured whole and past its start
+    (novel,) = res["novel"]
+    for part in ("whole", "after"):
+        assert set(novel[part]) == set(bench_realism.NOVEL_STARTS)
+        assert all(np.isfinite(v) and v >= 0 for v in novel[part].values())
+    # the stored signals do no harm beside the model fitted to the same library
+    assert novel["after"]["warm"] <= 1.1 * novel["after"]["model-only"]
+    assert 0.0 <= novel["matched"] <= 1.0 and novel["segments"] >= 1
+
+
+def test_novel_paths_where_the_warm_start_does_harm_fail_the_check():
+    def row(warm, model, after_warm, after_model):
+        return {
+            "whole": {"warm": warm, "model-only": model, "refined": 1.0, "nominal": 2.0},
+            "after": {"warm": after_warm, "model-only": after_model, "refined": 1.0,
+                      "nominal": 2.0},
+            "segments": 3,
+            "matched": 0.5,
+        }  # fmt: skip
+
+    lines, fails = bench_realism._novel_lines("x", [row(1.0, 1.0, 0.1, 0.1)] * 2)
+    assert fails == [] and len(lines) == 3 and "worst 1.000" in lines[0]
+    # whole within 1.1x, but past the start 1.2x on one path: the start hid it
+    _, fails = bench_realism._novel_lines("x", [row(1.0, 1.0, 0.1, 0.1), row(1.0, 1.0, 0.12, 0.1)])
+    assert len(fails) == 1 and "after" in fails[0] and "1.200x" in fails[0]
+    assert bench_realism._novel_lines("x", []) == ([], [])
 
 
 def test_settings_are_named_and_all_together_can_be_asked_for_alone():
