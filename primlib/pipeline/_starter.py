@@ -55,7 +55,12 @@ def _refined_note(machine: Machine, model: RefinedModel) -> str:
     th = ", ".join(
         f"{a}: gain {g:.4g}, time scale {c:.4g}, lag {tau * 1e3:.3g} ms"
         + (f", mode {f:.4g} Hz (damping {z:.3g})" if f > 0 else "")
-        for a, (g, c, tau), (f, z) in zip(machine.axes, model.theta, modes, strict=True)
+        if not held
+        else f"{a}: nominal kept (the fit ended at its bound, {held}: the pairs do not "
+        "determine it)"
+        for a, (g, c, tau), (f, z), held in zip(
+            machine.axes, model.theta, modes, model.held or ("",) * machine.dim, strict=True
+        )
     )
     return f"model refined on the library's stored pairs: {th}"
 

@@ -70,6 +70,9 @@ class RefinedModel:
     mode : array, shape (d, 2) or None
         Per axis the structural mode in series (frequency in Hz, damping ratio); 0 Hz where
         none was kept. None: not searched (``modes=False``).
+    held : tuple of str
+        Per axis what of the fit ended at a bound of the family (e.g. "gain 2"), where the
+        nominal model was kept instead; "" where it was not (empty: no axis fitted).
     """
 
     machine: object
@@ -77,6 +80,7 @@ class RefinedModel:
     rms_nominal: np.ndarray
     rms_refined: np.ndarray
     mode: np.ndarray | None = None
+    held: tuple[str, ...] = ()
 
 
 def _axis_tf(num, den, theta):
@@ -102,8 +106,9 @@ def _axis_residual(theta, num, den, dt: float, inputs, outputs, scale: float) ->
     )
 
 
-def _fit_axis(resid, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """θ for one axis, or (1, 1, 0) when the fit does not lower the error: (θ, r0, r1)."""
+def _fit_axis(resid, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    """θ for one axis, or (1, 1, 0) when the fit does not lower the error or ends at a bound:
+    (θ, r0, r1, what sat at a bound or "")."""
     nominal = np.array([1.0, 1.0, 0.0])
     r0 = resid(nominal)
     try:
@@ -125,9 +130,28 @@ def _fit_axis(resid, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         # sampling zero outside the unit circle for nothing): leave it out
         th = np.array([th[0], th[1], 0.0])
         r1 = resid(th)
-    if np.sum(r1**2) < np.sum(r0**2):
-        return th, r0, r1
-    return nominal, r0, r0
+    if np.sum(r1**2) >= np.sum(r0**2):
+        return nominal, r0, r0, ""
+    held = _at_bound(th)
+    if held:
+        # the least-squares optimum lies outside the family's plausible range: the pairs do
+        # not determine this axis (it barely moved, or its stored inputs do not make their
+        # paths), and a value at the bound stands for nothing; the nominal model is kept
+        return nominal, r0, r0, held
+    return th, r0, r1, ""
+
+
+def _at_bound(th: np.ndarray) -> str:
+    """What of θ = (g, c, τ) sits at a bound of ``_BOUNDS`` ("" if nothing): the gain or the
+    time scale at either, the lag at its upper one (no lag, τ = 0, is the nominal model)."""
+    lo, hi = _BOUNDS
+    names = ("gain", "time scale", "lag")
+    out = []
+    for k in range(3):
+        low = k < 2 and th[k] <= lo[k] * (1 + 1e-6)
+        if low or th[k] >= hi[k] * (1 - 1e-6):
+            out.append(f"{names[k]} {th[k] * (1e3 if k == 2 else 1):.4g}{' ms' if k == 2 else ''}")
+    return ", ".join(out)
 
 
 def _arx_modes(inputs, outputs, order: int, dt: float) -> list[tuple[float, float]]:
@@ -254,6 +278,7 @@ def refine_machine(
     if machine.feedback or not pairs:
         return RefinedModel(machine, theta, rms0, rms1, mode)
     new_plants = {}
+    held = [""] * d
     for i, axis in enumerate(machine.axes):
         num, den = machine.plants[axis]
         inputs = [np.asarray(u, float)[:, i] for u, _ in pairs]
@@ -268,10 +293,10 @@ def refine_machine(
             outputs=outputs,
             scale=scale,
         )
-        theta[i], r0, r1 = _fit_axis(resid, machine.dt)
+        theta[i], r0, r1, held[i] = _fit_axis(resid, machine.dt)
         full = theta[i]
         found = None
-        if modes and np.sqrt(np.mean(r1**2)) > _MODE_FLOOR:
+        if modes and not held[i] and np.sqrt(np.mean(r1**2)) > _MODE_FLOOR:
             order = len(_axis_tf(num, den, theta[i])[1]) + 1  # the fit's own, and a mode
             starts = _arx_modes(inputs, outputs, order, machine.dt)
             found = _fit_mode(resid, theta[i], r1, machine.dt, starts)
@@ -282,4 +307,4 @@ def refine_machine(
         rms1[i] = np.sqrt(np.mean(r1**2)) * scale
         new_plants[axis] = _axis_tf(num, den, full)
     refined = Machine(machine.name, machine.dt, machine.axes, new_plants)
-    return RefinedModel(refined, theta, rms0, rms1, mode)
+    return RefinedModel(refined, theta, rms0, rms1, mode, tuple(held))
