@@ -32,6 +32,12 @@ estimate of the true error it leaves). New paths, of three kinds:
 - (ii) translated: a primitive run 20-80 mm away (other ripple phase, same motion);
 - (iii) rotated and time-scaled: chains of 2-5 rotated, time-scaled windows of the
   primitives (the warm-start benchmark's construction) at random places.
+- (iv) beyond the issue's three, paths the library does not hold (``--novel N``, default
+  3): ``bench_match_novel.py``'s smooth random 3-D paths of 12 s (2,400 samples), already
+  moving at t = 0, their box centred on the table; first trial only, each input's own error
+  on the calm machine over the whole path and past its first 100 samples (the start, a
+  velocity step from rest that no input makes), the refined and nominal inverses with their
+  start corrected; checked: warm <= 1.1x model-only on every path, both ways.
 
 Each path is run from five first inputs: **warm** (the library's warm start), **model-only**
 (``WarmStart.model_u``: the grey-box model primlib fits to the same library data, inverted
