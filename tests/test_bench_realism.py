@@ -62,7 +62,7 @@ def test_a_tiny_run_measures_every_start_on_every_kind():
     # 12 ms lag it does not know), even fitted to 3 primitives of 3 trials each (measured
     # 5.8x; 0.3x while an axis the pairs did not determine took its fit's bound)
     assert novel["after"]["model-only"] < novel["after"]["nominal"] / 2
-    assert 0.0 <= novel["matched"] <= 1.0 and novel["segments"] >= 1
+    assert 0.0 <= novel["matched"] <= 1.0 and novel["segments"] >= 1 and novel["seconds"] > 0
 
 
 def test_novel_paths_where_the_warm_start_does_harm_fail_the_check():
@@ -73,6 +73,7 @@ def test_novel_paths_where_the_warm_start_does_harm_fail_the_check():
                       "nominal": 2.0},
             "segments": 3,
             "matched": 0.5,
+            "seconds": 1.0,
         }  # fmt: skip
 
     lines, fails = bench_realism._novel_lines("x", [row(1.0, 1.0, 0.1, 0.1)] * 2)
