@@ -55,11 +55,9 @@ def _refined_note(machine: Machine, model: RefinedModel) -> str:
     th = ", ".join(
         f"{a}: gain {g:.4g}, time scale {c:.4g}, lag {tau * 1e3:.3g} ms"
         + (f", mode {f:.4g} Hz (damping {z:.3g})" if f > 0 else "")
-        if not held
-        else f"{a}: nominal kept (the fit ended at its bound, {held}: the pairs do not "
-        "determine it)"
-        for a, (g, c, tau), (f, z), held in zip(
-            machine.axes, model.theta, modes, model.held or ("",) * machine.dim, strict=True
+        + (f" (at its bound: {edge}; the pairs do not determine this axis)" if edge else "")
+        for a, (g, c, tau), (f, z), edge in zip(
+            machine.axes, model.theta, modes, model.at_bound or ("",) * machine.dim, strict=True
         )
     )
     return f"model refined on the library's stored pairs: {th}"
