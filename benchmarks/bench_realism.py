@@ -252,12 +252,24 @@ def new_paths(placed: list[dict], rng, count: int, dt: float) -> dict[str, list]
     return out
 
 
-def first_inputs(lib: Library, nominal: Machine, pts: np.ndarray) -> dict[str, np.ndarray]:
-    traj = Trajectory.from_samples(pts, nominal.dt)
+def first_inputs(lib: Library, nominal: Machine, pts: np.ndarray):
+    """The five first inputs of a path of absolute points ``pts`` (fitted, it starts at
+    ``pts[0]``), the reference they track and the warm start (:func:`path_inputs`)."""
+    starts, ref, ws, _ = path_inputs(lib, nominal, Trajectory.from_samples(pts, nominal.dt), pts[0])
+    return starts, ref, ws
+
+
+def path_inputs(lib: Library, nominal: Machine, traj: Trajectory, origin: np.ndarray,
+                correct_start: bool = False):  # fmt: skip
+    """Each first input of ``traj`` run from ``origin`` (:data:`STARTS`), the reference it
+    tracks (relative to its start), the warm start and the seconds the warm start took;
+    ``correct_start``: the refined and nominal inverses with their start corrected (a path
+    already moving at t = 0)."""
     ref = traj.sample(nominal.dt)
     ref = ref - ref[0]
-    origin = pts[0]
+    t0 = time.perf_counter()
     ws = lib.warm_start(traj, "xyz", EPS, origin=origin)
+    seconds = time.perf_counter() - t0
     # issue 9's baseline, "the refined linear model's inverse of today": gain, time-constant
     # scale and lag, no structural mode (primlib.splice.refine_machine, modes=False)
     plain = lib.warm_start(traj, "xyz", EPS, match=ws.match, greybox=False, modes=False)
@@ -266,12 +278,13 @@ def first_inputs(lib: Library, nominal: Machine, pts: np.ndarray) -> dict[str, n
         {
             "warm": ws.u,
             "model-only": ws.model_u,
-            "refined": invert(refined, ref),
-            "nominal": invert(nominal, ref),
+            "refined": invert(refined, ref, correct_start=correct_start),
+            "nominal": invert(nominal, ref, correct_start=correct_start),
             "cold": np.zeros_like(ref),
         },
         ref,
         ws,
+        seconds,
     )
 
 
@@ -286,28 +299,16 @@ def novel_rows(lib: Library, nominal: Machine, calm, count: int) -> list[dict]:
     out = []
     for j in range(count):
         path = _walk(np.random.default_rng(100 + j), 2400, nominal.dt, 12)
-        ref = path.sample(nominal.dt)
-        origin = np.array(TABLE) / 2 - (ref.max(axis=0) + ref.min(axis=0)) / 2 + ref[0]
-        ref = ref - ref[0]
-        t0 = time.perf_counter()
-        ws = lib.warm_start(path, "xyz", EPS, origin=origin)
-        seconds = time.perf_counter() - t0
-        plain = lib.warm_start(path, "xyz", EPS, match=ws.match, greybox=False, modes=False)
-        refined = nominal if plain.model is None else plain.model.machine
-        inputs = {
-            "warm": ws.u,
-            "model-only": ws.model_u,
-            "refined": invert(refined, ref, correct_start=True),
-            "nominal": invert(nominal, ref, correct_start=True),
-        }
+        box = path.sample(nominal.dt)
+        origin = np.array(TABLE) / 2 - (box.max(axis=0) + box.min(axis=0)) / 2 + box[0]
+        inputs, ref, ws, seconds = path_inputs(lib, nominal, path, origin, correct_start=True)
         row: dict = {"whole": {}, "after": {}, "seconds": seconds}
-        for s, u in inputs.items():
-            e2 = np.sum((ref - calm.simulate(u, start=origin)) ** 2, axis=1)
+        for s in NOVEL_STARTS:
+            e2 = np.sum((ref - calm.simulate(inputs[s], start=origin)) ** 2, axis=1)
             row["whole"][s] = float(np.sqrt(np.mean(e2)))
             row["after"][s] = float(np.sqrt(np.mean(e2[AFTER:])))
-        segs = ws.match.segments
-        row["segments"] = len(segs)
-        row["matched"] = float(sum(g.end - g.start for g in segs if g.primitive is not None))
+        row["segments"] = len(ws.match.segments)
+        row["matched"] = ws.match.matched_fraction
         out.append(row)
     return out
 

@@ -221,7 +221,7 @@ def novel_rows(lib: Library, nominal: Machine, true: Machine, count: int,
                     rows[f"{key} after"].append(float(np.sqrt(np.mean(e2[AFTER:]))))
             segs = ws.match.segments
             rows["segments"].append(len(segs))
-            rows["matched"].append(sum(g.end - g.start for g in segs if g.primitive is not None))
+            rows["matched"].append(ws.match.matched_fraction)
         out[label] = rows
     return out
 
