@@ -78,6 +78,7 @@ def test_a_version_2_library_migrates_and_its_primitives_get_their_hash(tmp_path
     con.execute("DROP TABLE trials; DROP TABLE series; DROP SEQUENCE series_ids")
     con.execute("ALTER TABLE primitives DROP COLUMN origin")
     con.execute("ALTER TABLE primitives DROP COLUMN error_rms")
+    con.execute("DROP TABLE fitted_models")  # migration 7
     con.execute("DELETE FROM migrations WHERE version > 2")
     con.execute("UPDATE meta SET value = '2' WHERE key = 'schema_version'")
     con.close()

@@ -52,12 +52,13 @@ def test_error_rms_round_trips_and_old_files_migrate_to_unknown(tmp_path):
     # the file as migration 5 left it: a reader refuses, a writer adds the column as NULL
     con = duckdb.connect(str(db))
     con.execute("ALTER TABLE primitives DROP COLUMN error_rms")
+    con.execute("DROP TABLE fitted_models")  # migration 7
     con.execute("DELETE FROM migrations WHERE version > 5")
     con.execute("UPDATE meta SET value = '5' WHERE key = 'schema_version'")
     con.close()
     with Store(db) as s:
-        assert s.schema_version == SCHEMA_VERSION == 6
-        assert s.migrations()[-1][1].startswith("primitives: error_rms")
+        assert s.schema_version == SCHEMA_VERSION >= 6
+        assert s.migrations()[5][1].startswith("primitives: error_rms")
         assert all(p.error_rms is None for p in s.primitives())
 
 

@@ -90,6 +90,7 @@ def delete_machine(con: duckdb.DuckDBPyConnection, name: str, primitives: bool) 
             "(primitives=True, or --with-primitives)"
         )
     con.execute("DELETE FROM primitives WHERE machine = $n", {"n": name})
+    con.execute("DELETE FROM fitted_models WHERE machine = $n", {"n": name})
     con.execute("DELETE FROM machines WHERE name = $n", {"n": name})
     return count
 

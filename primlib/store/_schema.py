@@ -7,7 +7,7 @@ its own transaction together with the bump of ``meta.schema_version`` and a row 
 and leaves the file at the previous version. Steps are SQL text or a callable taking the
 connection. Never edit a released step: append a new one.
 
-Layout (version 6):
+Layout (version 7):
 
 ``meta(key, value)``
     ``application = primlib`` marks a primlib library; ``schema_version``.
@@ -32,6 +32,15 @@ ctrlpts, weights, points, signal)``
     the axes, output units) the stored signal is estimated to leave there without the
     measurement noise (:meth:`primlib.ilc.TrialLearner.input_error`): what the signal is
     worth, noise that ILC learned into it included; NULL where unknown.
+``fitted_models(key, machine, bank, code, kind, created, payload)`` (version 7)
+    Models fitted to a machine's stored primitives (the grey-box and refined models of a
+    warm start, :mod:`primlib.pipeline._fitted`), kept so that the next process reads them
+    instead of fitting again. ``key`` names everything the fit depends on (the machine's
+    definition, the primitive ids, the options, primlib's code and numpy's and scipy's
+    versions); ``bank`` the machine's primitive ids and ``code`` primlib's, by which rows
+    of an earlier set of primitives or another primlib are dropped when a new one is kept;
+    ``payload`` the model (``.npz`` bytes, no pickle). Derived data: deleting every row
+    loses nothing but time.
 ``series(id, machine, name, created, state, start, options, notes, duration, dt, dim,
 n_samples, degree, knots, ctrlpts, weights, points, origin, steps, primitive, finished)``
     A trial series on a real stage (:mod:`primlib.store._trials`): the path (NURBS and
@@ -201,6 +210,21 @@ MIGRATIONS: list[Migration] = [
         6,
         "primitives: error_rms, the tracking error the stored signal leaves where it ran",
         "ALTER TABLE primitives ADD COLUMN error_rms DOUBLE",
+    ),
+    (
+        7,
+        "fitted_models: the models a warm start fits to a machine's primitives, kept",
+        """
+        CREATE TABLE fitted_models (
+            key VARCHAR PRIMARY KEY,
+            machine VARCHAR NOT NULL,
+            bank VARCHAR NOT NULL,
+            code VARCHAR NOT NULL,
+            kind VARCHAR NOT NULL,
+            created TIMESTAMP NOT NULL,
+            payload BLOB NOT NULL
+        );
+        """,
     ),
 ]
 
