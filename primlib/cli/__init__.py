@@ -87,6 +87,7 @@ _COMMAND_MODULES: list[str] = [
     "_reproduce_cee",
     "_match",
     "_machine_identify",
+    "_machine_fit",
     "_serve",
     "_trials",
 ]

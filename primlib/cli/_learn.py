@@ -179,6 +179,7 @@ def learn(
 
     primlib learn data/paths/zigzag.csv --machine xyz --plot warm-start.png
     """
+    from primlib.cli._machine_fit import keep_models
     from primlib.nurbs import read_path
     from primlib.pipeline import Library, check_law, store_learned
     from primlib.store import check_name
@@ -205,6 +206,8 @@ def learn(
         if plot_file is not None and run.start == "warm":
             cold_run = lib.starter.learn(trajectory, machine_name, cold=True, contour=False, **opts)
     new_id = None
+    if not ingest:  # a stored primitive changes the set the models were fitted to
+        keep_models(db, lib, say=not as_json)
     if ingest:
         # Readers open the file for moments; after a learning run that may have taken minutes,
         # wait for them rather than throw the result away.

@@ -151,6 +151,7 @@ def match(
     import numpy as np
 
     from primlib.cli._library import _db, _open_library
+    from primlib.cli._machine_fit import keep_models
     from primlib.cli._output import FIGURE_FORMATS, TABLE_FORMATS, check_output
     from primlib.match import default_eps
     from primlib.nurbs import read_path
@@ -189,6 +190,7 @@ def match(
             from primlib.match import matched_pieces
 
             pieces = matched_pieces(mt.segments, lib.bank(machine_name))
+    keep_models(_db(ctx), lib, say=not as_json)
     n = max(int(round(traj.duration / m.dt)) + 1, 2)
     if plot_file is not None:
         from primlib.plot import plot_match

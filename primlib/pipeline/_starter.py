@@ -23,6 +23,7 @@ from primlib._errors import NoMatchError
 from primlib.greybox import GreyBox, fit_greybox, model_residual, polish, refit_greybox
 from primlib.match import BankIndex, Match, default_eps, match_path
 from primlib.nurbs import Trajectory
+from primlib.pipeline._fitted import KeptModels, fit_key
 from primlib.pipeline._greywarm import (
     _transformed,
     bank_pairs,
@@ -77,11 +78,13 @@ class WarmStarter:
     ----------
     greyboxes : OrderedDict
         The grey-box models (:func:`primlib.greybox.fit_greybox` on all of a machine's
-        stored pairs), keyed like ``refined`` by (machine definition, primitive ids).
+        stored pairs), keyed like ``refined``.
     refined : OrderedDict
-        The refined-model cache: (machine definition, primitive ids) -> RefinedModel. Ids
-        are never reused within a store and stored primitives never change, so the key
-        names the data.
+        The refined-model cache: :func:`~primlib.pipeline._fitted.fit_key` (machine
+        definition, primitive ids, options, code) -> RefinedModel. Ids are never reused
+        within a store and stored primitives never change, so the key names the data.
+    kept : KeptModels
+        The same models kept in the library file, read back by the next process.
     indexes : dict
         Machine name -> the :class:`~primlib.match.BankIndex` of its current bank. The
         store hands out the same Bank object while a machine's primitives are unchanged,
@@ -94,6 +97,7 @@ class WarmStarter:
         self.refined: OrderedDict[tuple, RefinedModel] = OrderedDict()
         self.greyboxes: OrderedDict[tuple, GreyBox] = OrderedDict()
         self.indexes: dict[str, BankIndex] = {}
+        self.kept = KeptModels(store)
 
     def index(self, machine: str) -> BankIndex:
         """The search index of the machine's primitives, kept while they are unchanged."""
@@ -147,7 +151,7 @@ class WarmStarter:
         their paths do not determine replaced: :meth:`~primlib.greybox.GreyBox.clean`), so
         those do not drive the linear model's gain, time constant and lag. ``modes``: a
         structural mode is searched beside them (:func:`~primlib.splice.refine_machine`).
-        Cached on this object.
+        Cached on this object, and kept in the library (:class:`KeptModels`).
         """
         all_ids = [int(i) for i in np.asarray(bank.ids)]
         chosen = [i for i in ids if i in all_ids]
@@ -157,18 +161,23 @@ class WarmStarter:
         # model, and the grey-box fitted beside it, differed in the 8th digit with the first
         # path a process asked for, and a rotated path's model-only input 1.6e-4 against 6.8e-5)
         chosen = sorted(chosen)
-        key = (repr(machine.to_dict()), tuple(chosen), gb is not None, modes)
+        opts = {"chosen": chosen, "greybox": gb is not None, "modes": modes}
+        # the whole bank is in the key: beside a grey-box model the fit depends on every pair
+        key = fit_key("refined", machine, all_ids, **opts)
         hit = self.refined.get(key)
         if hit is not None:
             self.refined.move_to_end(key)
             return hit
-        if gb is None:
-            stored = stored_signals(bank, chosen, versions=False)
-        else:
-            stored = linear_parts(gb, bank, chosen, versions=False, clean=True)
-        model = refine_machine(
-            machine, [(s.signal, s.points - s.points[0]) for s in stored.values()], modes=modes
-        )
+
+        def fit() -> RefinedModel:
+            if gb is None:
+                stored = stored_signals(bank, chosen, versions=False)
+            else:
+                stored = linear_parts(gb, bank, chosen, versions=False, clean=True)
+            pairs = [(s.signal, s.points - s.points[0]) for s in stored.values()]
+            return refine_machine(machine, pairs, modes=modes)
+
+        model = self.kept.get("refined", machine.name, all_ids, key, fit)
         self.refined[key] = model
         while len(self.refined) > self.refine_cache:
             self.refined.popitem(last=False)
@@ -177,22 +186,48 @@ class WarmStarter:
     def greybox(self, machine: Machine, bank: Bank, *, linear: bool = True) -> GreyBox:
         """The grey-box model fitted to all of the machine's stored pairs (cached);
         ``linear``: with the linear terms (not beside a refined model)."""
-        key = (repr(machine.to_dict()), tuple(int(i) for i in np.asarray(bank.ids)), linear)
+        bank_ids = [int(i) for i in np.asarray(bank.ids)]
+        key = fit_key("greybox", machine, bank_ids, linear=linear)
         hit = self.greyboxes.get(key)
         if hit is None:
-            pairs = bank_pairs(bank)
-            if not pairs:
-                raise NoMatchError(
-                    f"machine {machine.name!r} has no stored primitives to fit a model to"
-                )
-            hit = fit_greybox(machine, pairs, linear=linear)
-            if not linear:  # beside a refined model: refitted through its own run
-                hit = refit_greybox(hit, pairs, errors=pair_errors(bank))
+
+            def fit() -> GreyBox:
+                pairs = bank_pairs(bank)
+                if not pairs:
+                    raise NoMatchError(
+                        f"machine {machine.name!r} has no stored primitives to fit a model to"
+                    )
+                gb = fit_greybox(machine, pairs, linear=linear)
+                if not linear:  # beside a refined model: refitted through its own run
+                    gb = refit_greybox(gb, pairs, errors=pair_errors(bank))
+                return gb
+
+            hit = self.kept.get("greybox", machine.name, bank_ids, key, fit)
             self.greyboxes[key] = hit
             while len(self.greyboxes) > self.refine_cache:
                 self.greyboxes.popitem(last=False)
         self.greyboxes.move_to_end(key)
         return hit
+
+    def fit_models(self, machine: str) -> tuple[RefinedModel | None, GreyBox, str]:
+        """The models a warm start on ``machine`` uses, fitted now or read where kept.
+
+        Returns
+        -------
+        (refined model or None, grey-box model, note)
+            The refined model is None for a machine with feedback (not refined); the note
+            says what the refinement found. Beyond 24 primitives the refined model depends
+            on the primitives a path matched (:meth:`refined_model`): the one returned is
+            fitted on the first 24 and others on the warm starts that need them.
+
+        Raises
+        ------
+        NotFoundError, NoMatchError
+            An unknown machine; a machine without primitives.
+        """
+        m = self.store.machine(machine)
+        model, gb, _ = self._models(m, self.store.bank(machine), [], True, True)
+        return model, gb, "" if model is None else _refined_note(m, model)
 
     def model_input(
         self, path: Trajectory | str, machine: str, origin: Any = None
