@@ -17,6 +17,7 @@ import click
 
 from primlib._errors import InputError
 from primlib.cli import main
+from primlib.cli._machine_fit import keep_models
 from primlib.cli._options import parse_origin
 from primlib.cli._progress import match_progress
 from primlib.defaults import TIME_SCALE
@@ -151,7 +152,6 @@ def match(
     import numpy as np
 
     from primlib.cli._library import _db, _open_library
-    from primlib.cli._machine_fit import keep_models
     from primlib.cli._output import FIGURE_FORMATS, TABLE_FORMATS, check_output
     from primlib.match import default_eps
     from primlib.nurbs import read_path

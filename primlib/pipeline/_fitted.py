@@ -34,8 +34,7 @@ from primlib._errors import InputError, LibraryBusyError
 from primlib.greybox import GreyBox
 from primlib.plant import Machine
 from primlib.splice import RefinedModel
-from primlib.store import Store
-from primlib.store._fitted import keep_fitted, read_fitted
+from primlib.store import Store, keep_fitted, read_fitted
 
 __all__ = ["KeptModels", "code_version", "encode", "decode", "fit_key", "bank_signature"]
 

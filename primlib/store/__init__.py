@@ -8,11 +8,12 @@ says what a batch write stored. This is the only package that imports duckdb.
 
 Modules: ``_connection`` (opening, locking, schema check, transactions), ``_schema`` (the
 ordered, recorded migrations), ``_codec`` (Arrow buffers both ways), ``_validate`` (checks
-before any write), ``_insert`` (batch writes), ``_machines`` (the machines table), ``_store``
-(the public class).
+before any write), ``_insert`` (batch writes), ``_machines`` (the machines table), ``_fitted`` (the
+fitted models a warm start keeps), ``_store`` (the public class).
 """
 
 from primlib.store._connection import WriteCancelled
+from primlib.store._fitted import fitted_rows, keep_fitted, read_fitted
 from primlib.store._schema import MIGRATIONS, SCHEMA_VERSION, migrate
 from primlib.store._store import Store
 from primlib.store._trials import SeriesRecord, TrialRecord, TrialStore
@@ -28,6 +29,9 @@ __all__ = [
     "Primitive",
     "PrimitiveInfo",
     "AddResult",
+    "read_fitted",
+    "keep_fitted",
+    "fitted_rows",
     "WriteCancelled",
     "MIGRATIONS",
     "SCHEMA_VERSION",
