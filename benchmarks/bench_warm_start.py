@@ -197,7 +197,8 @@ def novel_rows(lib: Library, nominal: Machine, true: Machine, count: int,
     (``bench_match_novel.py``'s smooth random 3-D paths, not made of the library and already
     moving at t = 0), per search: {search: {input: [error per path]}}, with the segments and
     the matched fraction. Inputs: the warm start, its model-only input, the refined model's
-    inverse with its start corrected (the strongest model alone), the nominal inverse."""
+    inverse with its start corrected (the strongest model alone), the nominal inverse (its
+    start corrected too)."""
     from bench_match_novel import _walk
 
     out = {}
@@ -212,7 +213,10 @@ def novel_rows(lib: Library, nominal: Machine, true: Machine, count: int,
             ws = lib.warm_start(path, "xyz", **kw)
             rows["seconds"].append(time.perf_counter() - t0)
             refined = ws.model.machine if ws.model is not None else nominal
-            inputs = {"warm": ws.u, "model-only": ws.model_u, "nominal": invert(nominal, ref),
+            # both inverses with their start corrected, as bench_realism.py's (the path moves
+            # at t = 0: uncorrected, the nominal inverse's figure was mostly that drift)
+            inputs = {"warm": ws.u, "model-only": ws.model_u,
+                      "nominal": invert(nominal, ref, correct_start=True),
                       "refined": invert(refined, ref, correct_start=True)}  # fmt: skip
             for key, u in inputs.items():
                 e2 = np.sum((ref - true.simulate(u)) ** 2, axis=1)
