@@ -33,6 +33,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the stage's helpers: a stage library by its own ILC
+sys.path.insert(0, str(ROOT))  # this checkout's primlib, as in the processes it times
 
 
 def _env() -> dict[str, str]:
