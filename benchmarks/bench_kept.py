@@ -8,7 +8,7 @@ paid before they were kept), the second reads them. It prints the median and wor
 time of each and their ratio, and asserts that both wrote the same warm start, byte for byte.
 
 The library: ``--db FILE --machine NAME --path CSV`` (e.g. one of ``bench_realism.py
---keep-libraries``'s, where the fit took 50 s), or by default a stage library built here:
+--save-libraries``'s, where the fit took 50 s), or by default a stage library built here:
 ``--primitives`` loops of ``--samples`` samples learned by ILC on the example stage (Coulomb
 friction and force ripple, ``examples/stage``), and a new path (a loop of another size,
 rotated and moved).

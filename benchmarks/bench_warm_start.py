@@ -213,8 +213,8 @@ def novel_rows(lib: Library, nominal: Machine, true: Machine, count: int,
             ws = lib.warm_start(path, "xyz", **kw)
             rows["seconds"].append(time.perf_counter() - t0)
             refined = ws.model.machine if ws.model is not None else nominal
-            # both inverses with their start corrected, as bench_realism.py's (the path moves
-            # at t = 0: uncorrected, the nominal inverse's figure was mostly that drift)
+            # both inverses with their start corrected, as bench_realism.py's: the path moves
+            # at t = 0, and each is then the strongest input of its model
             inputs = {"warm": ws.u, "model-only": ws.model_u,
                       "nominal": invert(nominal, ref, correct_start=True),
                       "refined": invert(refined, ref, correct_start=True)}  # fmt: skip
