@@ -42,7 +42,10 @@ matches" is monotone in b, and always a prefix that matches followed by one that
   samples long and the paper's first probes (the remainder, its half, ...) all fail;
   starting from the previous length skips them. The trade-off: a prefix much longer than
   the last one that matched, after a shorter one failed, is not looked for (a non-monotone
-  case; the paper's halving finds it only when it lies on its probe points).
+  case; the paper's halving finds it only when it lies on its probe points). On the first
+  start of a path whose short pieces are noisier than eps, the halving's shortest probe is
+  made right after the first failure, and a failure there ends the start
+  (:mod:`._step_back`: the same answers wherever the probes between would fail too).
 * Inside that search a probe only stretches the match of the longest prefix so far to the
   new length at the same time scale and refines it until it matches or will not
   (:meth:`_Segmenter.extend`, a few Gauss–Newton steps of one candidate, none when the
@@ -88,6 +91,7 @@ from primlib.match._refine_many import refine_many
 from primlib.match._reject import rejects
 from primlib.match._rough import rough_bounds
 from primlib.match._screen import SlopeRanges, prefixes_fail
+from primlib.match._step_back import first_match
 from primlib.match._types import Segment
 
 if TYPE_CHECKING:
@@ -284,42 +288,11 @@ class _Segmenter:
         self.rejected += 1
         return True
 
-    def _first_match(self, ia: int, sig: int, guess: int):
-        """Step back from a prefix as long as ``guess`` until one matches: after a whole
-        search fails at L, its refined seeds are tried shrunk (at their time scales) to
-        where their RMSD predicts eps (a misfit growing like L², 10 % margin) and to L/2,
-        before a whole search at L/2.
-
-        Returns (match, its end, the shortest failing end (None if none), its RMSD, how it
-        failed) or None when nothing of ``least`` steps or more matches."""
-        last, a = self.path.n - 1, self._t(ia)
-        length = min(max(guess, sig), last - ia)
-        if self._screened(ia, length):
-            return None
-        hi, r_hi = None, np.inf
-        found, r = self.probe(a, self._t(ia + length))
-        while found is None:
-            if length <= sig or length < self.least:
-                return None
-            hi, r_hi, half = ia + length, r, max(sig, length // 2)
-            near = int(0.9 * length * math.sqrt(self.eps / r)) if np.isfinite(r) else 0
-            failed = self.failed
-            if failed is not None and failed[:2] == (a, self._t(hi)) and failed[3]:
-                for at in sorted({min(max(near, half), length - 1), half}, reverse=True):
-                    if at >= self.least:
-                        self.extensions += 1
-                        found, _ = self._stretched(a, self._t(hi), self._t(ia + at), failed[3])
-                        if found is not None:
-                            return found, ia + at, hi, r_hi, {"probe"}
-            length = half
-            found, r = self.probe(a, self._t(ia + length))
-        return found, ia + length, hi, r_hi, {"probe"} if hi is not None else set()
-
     def longest_prefix(self, ia: int, sig: int, guess: int) -> tuple[int, _Found] | None:
         """The longest matching prefix from sample ia (module notes): its end sample and
         match, or None when no prefix of ``least`` steps or more matches."""
         last, a = self.path.n - 1, self._t(ia)
-        first = self._first_match(ia, sig, guess)
+        first = first_match(self, ia, sig, guess)
         if first is None:
             return None
         found, lo, hi, r_hi, tried = first
