@@ -58,30 +58,33 @@ def _projected(w: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("mkd,mkd->m", res, res))
 
 
+@pytest.mark.parametrize("tight", [False, True])
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), d=st.sampled_from([2, 3]), k=st.integers(5, 16),
        lo=st.floats(0.2, 4.0), width=st.floats(1.0, 4.0))  # fmt: skip
-def test_no_window_is_rougher_than_its_primitives_bound(seed, d, k, lo, width):
+def test_no_window_is_rougher_than_its_primitives_bound(tight, seed, d, k, lo, width):
     rng = np.random.default_rng(seed)
     index = _bank(rng, d)
     rough = Roughness(index.points, index.offsets)
-    bound = rough.bound(k, lo, lo * width)
+    bound = rough.bound(k, lo, lo * width, tight=tight)
     for j in range(index.k):
         w = _windows(rng, index, j, k, lo, lo * width)
         if w is not None:
             assert np.all(_projected(w) <= bound[j]), (j, _projected(w).max(), bound[j])
 
 
+@pytest.mark.parametrize("tight", [False, True])
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), k=st.integers(5, 16), noise=st.floats(0.01, 3.0))
-def test_the_lower_bound_never_exceeds_the_exact_rmsd(seed, k, noise):
+def test_the_lower_bound_never_exceeds_the_exact_rmsd(tight, seed, k, noise):
     rng = np.random.default_rng(seed)
     index = _bank(rng, 3)
     j = int(rng.integers(1, index.k))
     piece = _windows(rng, index, j, k, 0.5, 2.0, m=3)[2]
     q = piece + rng.normal(size=piece.shape) * noise + rng.normal(size=3) * 50
     # steps = (k − 1): h of a window at time scale s is s, so (0.5, 2) is the range drawn
-    lb = rough_bounds(Roughness(index.points, index.offsets), q, k - 1.0, (0.5, 2.0), eps=0.0)
+    rough = Roughness(index.points, index.offsets)
+    lb = rough_bounds(rough, q, k - 1.0, (0.5, 2.0), eps=0.0, tight=tight)
     assert lb is not None
     for r in range(index.k):
         w = _windows(rng, index, r, k, 0.5, 2.0)

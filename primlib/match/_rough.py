@@ -44,7 +44,9 @@ powers of 2), each computed once per K and kept.
 Tried only on pieces of 5 to ``K_MAX`` samples (longer ones smooth a primitive's curvature into
 R_j, and the check seldom fails there for noise alone), where ‖(I − P) q‖/√K ≥ eps (else no
 primitive can be excluded), and on banks of at most ``BANK_MAX`` samples (each bin reads every
-window of the bank: ~5 ms on the 8,400 bundled samples, seconds on 2 million).
+window of the bank: ~5 ms on the 8,400 bundled samples, seconds on 2 million). A tighter R_j
+(:mod:`._rough_tight`, a quintic per support) rejects the shortest probes, where a failure
+searched or not changes nothing else in the segmentation.
 """
 
 from __future__ import annotations
@@ -54,6 +56,8 @@ import math
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+
+from primlib.match._rough_tight import tight_bin
 
 __all__ = ["Roughness", "query_roughness", "rough_bounds", "rough_scales", "K_MAX", "BANK_MAX"]
 
@@ -105,10 +109,23 @@ class Roughness:
         self.ext = np.ascontiguousarray(points[rows])
         self.scale = float(np.abs(points).max()) if points.size else 0.0
         self._bins: dict[tuple[int, int], np.ndarray] = {}
+        self._tight: dict[tuple[int, int], np.ndarray] = {}
 
-    def bound(self, k: int, h_lo: float, h_hi: float) -> np.ndarray:
-        """R_j of every primitive for K = ``k`` samples and h in [h_lo, h_hi], shape (k,)."""
-        return np.maximum.reduce([r for _, _, r in self.bins(k, h_lo, h_hi)])
+    def bound(self, k: int, h_lo: float, h_hi: float, tight: bool = False) -> np.ndarray:
+        """R_j of every primitive for K = ``k`` samples and h in [h_lo, h_hi], shape (k,);
+        ``tight``: each support's smaller of this and :mod:`._rough_tight`'s bound (a few
+        times the time, so asked for only where a failure is the whole answer)."""
+        bins = self.bins(k, h_lo, h_hi)
+        if not tight:
+            return np.maximum.reduce([r for _, _, r in bins])
+        out = []
+        for h0, h1, _ in bins:
+            key = (k, round(_BINS * math.log2(h0 / _SHIFT)))
+            if key not in self._tight:
+                phi = _phi(h0 * (1.0 - 1e-9))
+                self._tight[key] = tight_bin(self.ext, self.ext_off, k, h0, h1, phi, self.scale)
+            out.append(self._tight[key])
+        return np.maximum.reduce(out)
 
     def bins(self, k: int, h_lo: float, h_hi: float) -> list[tuple[float, float, np.ndarray]]:
         """(h0, h1, R_j of every primitive) of each bin [h0, h1] that h in [h_lo, h_hi]
@@ -129,9 +146,7 @@ class Roughness:
     def _bin(self, k: int, h0: float, h1: float) -> np.ndarray:
         """R_j for h in [h0, h1] (module notes)."""
         ell = math.floor(1.0 + (k - 1) * h1 * (1.0 + 1e-9)) + 4
-        low = h0 * (1.0 - 1e-9)  # the bin's bottom, a little below (:meth:`bound`)
-        col = math.ceil(2.0 / low) + _FAR * 2.0 * (math.floor(1.0 / low) + 1.0)
-        phi = math.sqrt(1.25 * col)
+        phi = _phi(h0 * (1.0 - 1e-9))  # the bin's bottom, a little below (:meth:`bound`)
         sizes = np.diff(self.ext_off)
         out = np.zeros(sizes.size)
         for size in np.unique(np.minimum(sizes, ell)):
@@ -172,16 +187,25 @@ class Roughness:
 
 
 def rough_bounds(rough: Roughness | None, q: np.ndarray, steps: float,
-                 time_scale: tuple[float, float], eps: float) -> np.ndarray | None:  # fmt: skip
+                 time_scale: tuple[float, float], eps: float,
+                 tight: bool = False) -> np.ndarray | None:  # fmt: skip
     """(‖(I − P) q‖ − R_j)/√K for every primitive j (module notes): a lower bound on the
     RMSD of any of its windows against the piece ``q`` (K, d), which lasts ``steps`` sample
     steps of the bank, at time scales in ``time_scale``; None where it cannot exclude any
-    (no bank table, K outside 5 ... ``K_MAX``, or a piece smooth to within eps)."""
+    (no bank table, K outside 5 ... ``K_MAX``, or a piece smooth to within eps). ``tight``:
+    R_j of :meth:`Roughness.bound` with ``tight``."""
     k, rq = q.shape[0], _rough_query(rough, q, eps)
     if rq is None:
         return None
     per = steps / (k - 1)  # h of a window at time scale 1
-    return (rq - rough.bound(k, time_scale[0] * per, time_scale[1] * per)) / math.sqrt(k)
+    r = rough.bound(k, time_scale[0] * per, time_scale[1] * per, tight)
+    return (rq - r) / math.sqrt(k)
+
+
+def _phi(low: float) -> float:
+    """The bound on ‖Φ‖₂ for steps h >= ``low`` (module notes)."""
+    col = math.ceil(2.0 / low) + _FAR * 2.0 * (math.floor(1.0 / low) + 1.0)
+    return math.sqrt(1.25 * col)
 
 
 def rough_scales(rough: Roughness | None, q: np.ndarray, steps: float,

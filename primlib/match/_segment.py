@@ -215,8 +215,16 @@ class _Segmenter:
             return None, np.inf
         kc = self.path.confirm_points(a, b)
         q = self.path.at(np.linspace(a, b, kc))
-        rough = rough_bounds(self.bank.roughness(), q, steps, self.opts.time_scale, self.eps)
-        if rejects(env, q, steps, low, self.opts.rotation, self.eps, rough):
+        table, ts = self.bank.roughness(), self.opts.time_scale
+        rough = rough_bounds(table, q, steps, ts, self.eps)
+        if rejects(env, q, steps, low, self.opts.rotation, self.eps, rough) or (
+            # a shortest probe also by the tighter R_j (._rough_tight): its failure is all the
+            # segmentation takes from it (none of its seeds is shrunk below the minimum, nor
+            # kept for a later start), so rejected or searched, the answer is the same
+            rough is not None and kc - 1 == self.least
+            and rejects(env, q, steps, low, self.opts.rotation, self.eps,
+                        rough_bounds(table, q, steps, ts, self.eps, tight=True))
+        ):  # fmt: skip
             self.rejected += 1  # no primitive can be within eps: the exact check would say so
             return None, np.inf
         seeds = self.seeder.seeds(self.path, a, b, self.eps)
