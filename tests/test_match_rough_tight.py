@@ -88,3 +88,15 @@ def test_shortest_probes_rejected_by_the_tight_bound_leave_the_segments_as_they_
         assert info1["queries"] <= info0["queries"]
         assert info1["rejected"] >= info0["rejected"]
     assert sum(i[1]["queries"] for i in runs[1]) < sum(i[1]["queries"] for i in runs[0])
+
+
+def test_the_tight_bound_is_taken_only_where_the_plain_one_leaves_a_primitive_in():
+    index = BankIndex(_bundled())
+    rough = Roughness(index.points, index.offsets)
+    coarse = rough.bound(8, 2.1, 3.9)
+    above = float(np.median(coarse))
+    part = rough.bound(8, 2.1, 3.9, tight=True, above=above)
+    kept = rough._tight[(8, 1)]
+    assert np.array_equal(np.isnan(kept), coarse <= above)  # the others never computed
+    whole = Roughness(index.points, index.offsets).bound(8, 2.1, 3.9, tight=True)
+    assert np.array_equal(part, np.where(coarse > above, whole, coarse))

@@ -111,20 +111,24 @@ class Roughness:
         self._bins: dict[tuple[int, int], np.ndarray] = {}
         self._tight: dict[tuple[int, int], np.ndarray] = {}
 
-    def bound(self, k: int, h_lo: float, h_hi: float, tight: bool = False) -> np.ndarray:
+    def bound(self, k: int, h_lo: float, h_hi: float, tight: bool = False,
+              above: float = -math.inf) -> np.ndarray:  # fmt: skip
         """R_j of every primitive for K = ``k`` samples and h in [h_lo, h_hi], shape (k,);
-        ``tight``: each support's smaller of this and :mod:`._rough_tight`'s bound (a few
-        times the time, so asked for only where a failure is the whole answer)."""
+        ``tight``: each support's smaller of this and :mod:`._rough_tight`'s bound, taken
+        (and kept) only for the primitives and bins where this one is above ``above`` (a
+        few times the time: a fresh index asks for those a probe needs, not every bin's)."""
         bins = self.bins(k, h_lo, h_hi)
         if not tight:
             return np.maximum.reduce([r for _, _, r in bins])
         out = []
-        for h0, h1, _ in bins:
+        for h0, h1, coarse in bins:
             key = (k, round(_BINS * math.log2(h0 / _SHIFT)))
-            if key not in self._tight:
+            kept = self._tight.setdefault(key, np.full(coarse.size, np.nan))
+            need = np.flatnonzero((coarse > above) & np.isnan(kept))
+            if need.size:
                 phi = _phi(h0 * (1.0 - 1e-9))
-                self._tight[key] = tight_bin(self.ext, self.ext_off, k, h0, h1, phi, self.scale)
-            out.append(self._tight[key])
+                kept[need] = tight_bin(self.ext, self.ext_off, k, h0, h1, phi, self.scale, need)
+            out.append(np.where(coarse > above, kept, coarse))
         return np.maximum.reduce(out)
 
     def bins(self, k: int, h_lo: float, h_hi: float) -> list[tuple[float, float, np.ndarray]]:
@@ -198,7 +202,9 @@ def rough_bounds(rough: Roughness | None, q: np.ndarray, steps: float,
     if rq is None:
         return None
     per = steps / (k - 1)  # h of a window at time scale 1
-    r = rough.bound(k, time_scale[0] * per, time_scale[1] * per, tight)
+    # tight: only where the plain R_j leaves the primitive in (rq − R_j < eps·√K)
+    above = rq - eps * math.sqrt(k) * (1.0 + 1e-9)
+    r = rough.bound(k, time_scale[0] * per, time_scale[1] * per, tight, above)
     return (rq - r) / math.sqrt(k)
 
 

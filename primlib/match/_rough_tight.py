@@ -22,7 +22,8 @@ quartic term is taken at the largest h of each eighth of the bin, with τ_m over
 starting in the support's cell there (the whole support for a primitive's last one, which
 holds every later window). The smaller of this and :mod:`._rough`'s bound is kept per
 support, so R_j only falls: on the bundled library (K = 8) 1.6-2.4x below the cubic's at
-the top octave of h, 2.3-5.7x at the others; ~50 ms a K for every octave.
+the top octave of h, 2.3-5.7x at the others. All of it costs ~50 ms a K, so it is taken per
+primitive and octave where a probe needs it (:meth:`._rough.Roughness.bound`).
 """
 
 from __future__ import annotations
@@ -74,16 +75,18 @@ def _rest_factors(k: int, size: int) -> np.ndarray:
 
 
 def tight_bin(ext: np.ndarray, ext_off: np.ndarray, k: int, h0: float, h1: float,
-              phi: float, scale: float) -> np.ndarray:  # fmt: skip
-    """R_j (per primitive) for K = ``k`` points and h in [h0, h1]: over every support, the
-    smaller of :mod:`._rough`'s bound (‖Φ‖₂ ≤ ``phi``) and this module's, each with its
-    round-off margin; ``ext``, ``ext_off`` the extended samples (:class:`._rough.Roughness`)."""
+              phi: float, scale: float, prims: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    """R_j for K = ``k`` points and h in [h0, h1] of the primitives ``prims`` (default all),
+    in their order: over every support, the smaller of :mod:`._rough`'s bound (‖Φ‖₂ ≤
+    ``phi``) and this module's, each with its round-off margin; ``ext``, ``ext_off`` the
+    extended samples (:class:`._rough.Roughness`)."""
     ell = math.floor(1.0 + (k - 1) * h1 * (1.0 + 1e-9)) + 4
-    sizes = np.diff(ext_off)
-    out = np.zeros(sizes.size)
-    for size in np.unique(np.minimum(sizes, ell)):
-        prims = np.flatnonzero(np.minimum(sizes, ell) == size)
-        out[prims] = _supports(ext, ext_off, prims, int(size), k, (h0, h1), phi, scale)
+    prims = np.arange(ext_off.size - 1) if prims is None else np.asarray(prims)
+    sizes = np.minimum(np.diff(ext_off)[prims], ell)
+    out = np.zeros(prims.size)
+    for size in np.unique(sizes):
+        at = np.flatnonzero(sizes == size)
+        out[at] = _supports(ext, ext_off, prims[at], int(size), k, (h0, h1), phi, scale)
     return out
 
 
