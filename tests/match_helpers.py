@@ -2,9 +2,26 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from primlib.nurbs import Trajectory
+from primlib.plant import Machine
+from primlib.store import Bank
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def bundled_bank() -> Bank:
+    """The bundled example library's 14 paths, sampled on the xyz machine's grid."""
+    machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
+    pieces = [
+        Trajectory.from_csv(f).sample(machine.dt)
+        for f in sorted((ROOT / "data" / "library").glob("*.csv"))
+        if not f.name.endswith(".signal.csv")
+    ]
+    return Bank.from_samples(pieces, machine.dt)
 
 
 def random_primitive(rng, dt: float, n: int = 401) -> Trajectory:

@@ -2,12 +2,11 @@
 between samples, at every step in the range), the lower bound never exceeds the exact Kabsch
 RMSD in any rotation family, and a noisy path is cut as without it, with fewer windows."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from match_helpers import bundled_bank
 
 from primlib.match import BankIndex, kabsch, segment_path
 from primlib.match._interp import cubic_at
@@ -18,11 +17,7 @@ from primlib.match._rough import (
     rough_bounds,
     rough_scales,
 )
-from primlib.nurbs import Trajectory
-from primlib.plant import Machine
 from primlib.store import Bank
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _bank(rng, d: int) -> BankIndex:
@@ -144,21 +139,11 @@ def test_a_smooth_piece_asks_for_nothing_and_a_large_bank_builds_no_table():
     assert big.roughness() is None
 
 
-def _bundled() -> Bank:
-    machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
-    pieces = [
-        Trajectory.from_csv(f).sample(machine.dt)
-        for f in sorted((ROOT / "data" / "library").glob("*.csv"))
-        if not f.name.endswith(".signal.csv")
-    ]
-    return Bank.from_samples(pieces, machine.dt)
-
-
 @pytest.mark.parametrize("level", [0.001, 0.01])
 def test_a_noisy_path_is_cut_as_without_the_bound_with_fewer_windows(level, monkeypatch):
     # a stored piece with white noise at a quarter of the eps the noise needs (issue 13's
     # unmatched queries): the same segments either way, fewer windows bounded with it
-    bank = _bundled()
+    bank = bundled_bank()
     index = BankIndex(bank)
     rng = np.random.default_rng(7)
     clean = index.points_of(5)[100:340]

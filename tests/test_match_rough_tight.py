@@ -4,30 +4,15 @@ unmatched path rejected by it with the segmentation unchanged. (That no window e
 ``test_match_rough.py``, with ``tight``.)"""
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from match_helpers import bundled_bank
 
 from primlib.match import BankIndex, segment_path
 from primlib.match import _segment as segment_module
 from primlib.match._rough import Roughness
 from primlib.match._rough_tight import moment_max
-from primlib.nurbs import Trajectory
-from primlib.plant import Machine
-from primlib.store import Bank
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _bundled() -> Bank:
-    machine = Machine.from_json(ROOT / "data" / "machines" / "xyz.json")
-    pieces = [
-        Trajectory.from_csv(f).sample(machine.dt)
-        for f in sorted((ROOT / "data" / "library").glob("*.csv"))
-        if not f.name.endswith(".signal.csv")
-    ]
-    return Bank.from_samples(pieces, machine.dt)
 
 
 def test_the_kernel_s_moments_are_those_catmull_rom_has():
@@ -48,7 +33,7 @@ def test_the_kernel_s_moments_are_those_catmull_rom_has():
 
 @pytest.mark.parametrize("k", [5, 8, 16])
 def test_the_tight_bound_is_never_above_the_cubic_one_and_well_below_on_the_bundled_bank(k):
-    index = BankIndex(_bundled())
+    index = BankIndex(bundled_bank())
     rough = Roughness(index.points, index.offsets)
     for h0, h1, coarse in rough.bins(k, 0.25, 4.0):
         tight = rough.bound(k, h0 * 1.001, h1 * 0.999, tight=True)
@@ -64,7 +49,7 @@ def test_shortest_probes_rejected_by_the_tight_bound_leave_the_segments_as_they_
 ):
     # issue 13's unmatched noisy queries: a stored piece with noise at a quarter of the eps
     # it needs; the start's shortest probes fail unsearched more often, the cuts the same
-    bank = _bundled()
+    bank = bundled_bank()
     plain = segment_module.rough_bounds
     runs = []
     for tight in (False, True):
@@ -91,7 +76,7 @@ def test_shortest_probes_rejected_by_the_tight_bound_leave_the_segments_as_they_
 
 
 def test_the_tight_bound_is_taken_only_where_the_plain_one_leaves_a_primitive_in():
-    index = BankIndex(_bundled())
+    index = BankIndex(bundled_bank())
     rough = Roughness(index.points, index.offsets)
     coarse = rough.bound(8, 2.1, 3.9)
     above = float(np.median(coarse))
