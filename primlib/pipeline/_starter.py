@@ -94,8 +94,8 @@ class WarmStarter:
     def __init__(self, store: Store, *, refine_cache: int = 16) -> None:
         self.store = store
         self.refine_cache = int(refine_cache)
-        self.refined: OrderedDict[tuple, RefinedModel] = OrderedDict()
-        self.greyboxes: OrderedDict[tuple, GreyBox] = OrderedDict()
+        self.refined: OrderedDict[str, RefinedModel] = OrderedDict()
+        self.greyboxes: OrderedDict[str, GreyBox] = OrderedDict()
         self.indexes: dict[str, BankIndex] = {}
         self.kept = KeptModels(store)
 
@@ -164,10 +164,6 @@ class WarmStarter:
         opts = {"chosen": chosen, "greybox": gb is not None, "modes": modes}
         # the whole bank is in the key: beside a grey-box model the fit depends on every pair
         key = fit_key("refined", machine, all_ids, **opts)
-        hit = self.refined.get(key)
-        if hit is not None:
-            self.refined.move_to_end(key)
-            return hit
 
         def fit() -> RefinedModel:
             if gb is None:
@@ -177,36 +173,36 @@ class WarmStarter:
             pairs = [(s.signal, s.points - s.points[0]) for s in stored.values()]
             return refine_machine(machine, pairs, modes=modes)
 
-        model = self.kept.get("refined", machine.name, all_ids, key, fit)
-        self.refined[key] = model
-        while len(self.refined) > self.refine_cache:
-            self.refined.popitem(last=False)
-        return model
+        return self._cached(self.refined, "refined", machine.name, all_ids, key, fit)
 
     def greybox(self, machine: Machine, bank: Bank, *, linear: bool = True) -> GreyBox:
         """The grey-box model fitted to all of the machine's stored pairs (cached);
         ``linear``: with the linear terms (not beside a refined model)."""
         bank_ids = [int(i) for i in np.asarray(bank.ids)]
         key = fit_key("greybox", machine, bank_ids, linear=linear)
-        hit = self.greyboxes.get(key)
+
+        def fit() -> GreyBox:
+            pairs = bank_pairs(bank)
+            if not pairs:
+                raise NoMatchError(
+                    f"machine {machine.name!r} has no stored primitives to fit a model to"
+                )
+            gb = fit_greybox(machine, pairs, linear=linear)
+            if not linear:  # beside a refined model: refitted through its own run
+                gb = refit_greybox(gb, pairs, errors=pair_errors(bank))
+            return gb
+
+        return self._cached(self.greyboxes, "greybox", machine.name, bank_ids, key, fit)
+
+    def _cached(self, cache: OrderedDict, kind: str, name: str, ids, key: str, fit):
+        """``cache[key]``, else the model kept in the library or ``fit()``
+        (:meth:`KeptModels.get`), kept in ``cache`` (least recently used dropped first)."""
+        hit = cache.get(key)
         if hit is None:
-
-            def fit() -> GreyBox:
-                pairs = bank_pairs(bank)
-                if not pairs:
-                    raise NoMatchError(
-                        f"machine {machine.name!r} has no stored primitives to fit a model to"
-                    )
-                gb = fit_greybox(machine, pairs, linear=linear)
-                if not linear:  # beside a refined model: refitted through its own run
-                    gb = refit_greybox(gb, pairs, errors=pair_errors(bank))
-                return gb
-
-            hit = self.kept.get("greybox", machine.name, bank_ids, key, fit)
-            self.greyboxes[key] = hit
-            while len(self.greyboxes) > self.refine_cache:
-                self.greyboxes.popitem(last=False)
-        self.greyboxes.move_to_end(key)
+            hit = cache[key] = self.kept.get(kind, name, ids, key, fit)
+        cache.move_to_end(key)
+        while len(cache) > self.refine_cache:
+            cache.popitem(last=False)
         return hit
 
     def fit_models(self, machine: str) -> tuple[RefinedModel | None, GreyBox, str]:
