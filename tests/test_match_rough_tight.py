@@ -81,7 +81,8 @@ def test_the_tight_bound_is_taken_only_where_the_plain_one_leaves_a_primitive_in
     coarse = rough.bound(8, 2.1, 3.9)
     above = float(np.median(coarse))
     part = rough.bound(8, 2.1, 3.9, tight=True, above=above)
-    kept = rough._tight[(8, 1)]
+    ((h0, _, _),) = rough.bins(8, 2.1, 3.9)  # one bin: its bottom edge names it
+    kept = rough._tight[(8, h0)]
     assert np.array_equal(np.isnan(kept), coarse <= above)  # the others never computed
     whole = Roughness(index.points, index.offsets).bound(8, 2.1, 3.9, tight=True)
     assert np.array_equal(part, np.where(coarse > above, whole, coarse))

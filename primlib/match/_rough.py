@@ -109,7 +109,7 @@ class Roughness:
         self.ext = np.ascontiguousarray(points[rows])
         self.scale = float(np.abs(points).max()) if points.size else 0.0
         self._bins: dict[tuple[int, int], np.ndarray] = {}
-        self._tight: dict[tuple[int, int], np.ndarray] = {}
+        self._tight: dict[tuple[int, float], np.ndarray] = {}
 
     def bound(self, k: int, h_lo: float, h_hi: float, tight: bool = False,
               above: float = -math.inf) -> np.ndarray:  # fmt: skip
@@ -122,8 +122,8 @@ class Roughness:
             return np.maximum.reduce([r for _, _, r in bins])
         out = []
         for h0, h1, coarse in bins:
-            key = (k, round(_BINS * math.log2(h0 / _SHIFT)))
-            kept = self._tight.setdefault(key, np.full(coarse.size, np.nan))
+            # a bin's bottom edge is computed the same way each time: with K it names the bin
+            kept = self._tight.setdefault((k, h0), np.full(coarse.size, np.nan))
             need = np.flatnonzero((coarse > above) & np.isnan(kept))
             if need.size:
                 phi = _phi(h0 * (1.0 - 1e-9))
