@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from primlib.match._rough import _basis
+from primlib.match._rough import query_roughness
 
 if TYPE_CHECKING:
     from primlib.match._segment import _Segmenter
@@ -91,10 +91,7 @@ def _rough(seg: _Segmenter, ia: int, length: int, span: int) -> bool:
     k = length + 1
     m = max(1, min(8, (span + 1) // k))
     blocks = seg.path.points[ia : ia + m * k].reshape(m, k, -1)
-    basis = _basis(k)  # orthonormal cubics (k, 4)
-    qc = blocks - blocks.mean(axis=1, keepdims=True)
-    res = qc - np.einsum("kc,mcd->mkd", basis, np.einsum("kc,mkd->mcd", basis, qc))
-    return float(np.median(np.sqrt(np.einsum("mkd,mkd->m", res, res)))) >= seg.eps * math.sqrt(k)
+    return float(np.median([query_roughness(b) for b in blocks])) >= seg.eps * math.sqrt(k)
 
 
 def _shrunk(seg: _Segmenter, ia: int, length: int, r: float, half: int):
