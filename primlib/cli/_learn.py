@@ -208,7 +208,7 @@ def learn(
     new_id = None
     if not ingest:  # a stored primitive changes the set the models were fitted to
         keep_models(db, lib, say=not as_json)
-    if ingest:
+    else:
         # Readers open the file for moments; after a learning run that may have taken minutes,
         # wait for them rather than throw the result away.
         with _open_waiting(db, STORE_WAIT, create=False) as store:
