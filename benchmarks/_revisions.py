@@ -19,7 +19,15 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 
-__all__ = ["ROOT", "alternated", "extract", "run_worker"]
+__all__ = ["ROOT", "alternated", "checkout_env", "extract", "run_worker"]
+
+
+def checkout_env() -> dict[str, str]:
+    """The environment of a fresh ``primlib`` process that runs this checkout's primlib (first
+    on ``PYTHONPATH``), drawing without a display."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return env
 
 
 def extract(rev: str, folder: str | Path) -> Path:

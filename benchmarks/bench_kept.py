@@ -20,7 +20,6 @@ Run: ``python benchmarks/bench_kept.py [--rounds 3] [--samples 1001] [--primitiv
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import statistics
 import subprocess
@@ -30,16 +29,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _revisions import checkout_env
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the stage's helpers: a stage library by its own ILC
 sys.path.insert(0, str(ROOT))  # this checkout's primlib, as in the processes it times
-
-
-def _env() -> dict[str, str]:
-    env = dict(os.environ, MPLBACKEND="Agg")
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
-    return env
 
 
 def stage_library(folder: Path, primitives: int, samples: int) -> tuple[Path, str, Path]:
@@ -74,7 +68,7 @@ def _match(db: Path, machine: str, path: Path, out: Path) -> float:
     args = ["--db", str(db), "match", str(path), "--machine", machine, "--out", str(out)]
     t0 = time.perf_counter()
     run = subprocess.run(
-        [sys.executable, "-m", "primlib", *args], env=_env(), capture_output=True, text=True
+        [sys.executable, "-m", "primlib", *args], env=checkout_env(), capture_output=True, text=True
     )
     seconds = time.perf_counter() - t0
     if run.returncode != 0:

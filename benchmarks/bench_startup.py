@@ -22,6 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from _revisions import checkout_env
+
 ROOT = Path(__file__).resolve().parents[1]
 GOALS = {"--help": 0.3, "list": 0.6}
 # what the command loaded before: every package, at start-up
@@ -33,17 +35,13 @@ EAGER = (
 HEAVY = ("scipy", "matplotlib")
 
 
-def _env() -> dict[str, str]:
-    env = dict(os.environ, MPLBACKEND="Agg")
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
-    return env
-
-
 def _run(code: str, args: list[str]) -> float:
     """Wall-clock seconds of one fresh interpreter running ``code`` then the command."""
     script = f"{code}import sys; from primlib.cli import main; main({args!r}, prog_name='primlib')"
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-c", script], env=_env(), check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-c", script], env=checkout_env(), check=True, capture_output=True
+    )
     return time.perf_counter() - t0
 
 
@@ -71,7 +69,11 @@ def _loaded(args: list[str]) -> set[str]:
         f"print('LOADED:', *[m for m in {HEAVY!r} if m in sys.modules])"
     )
     out = subprocess.run(
-        [sys.executable, "-c", script], env=_env(), check=True, capture_output=True, text=True
+        [sys.executable, "-c", script],
+        env=checkout_env(),
+        check=True,
+        capture_output=True,
+        text=True,
     )
     return set(out.stdout.strip().splitlines()[-1].split()[1:])
 
@@ -81,7 +83,7 @@ def _heaviest(args: list[str], top: int = 6) -> list[tuple[float, str]]:
     script = f"from primlib.cli import main; main({args!r}, prog_name='primlib')"
     err = subprocess.run(
         [sys.executable, "-X", "importtime", "-c", script],
-        env=_env(),
+        env=checkout_env(),
         capture_output=True,
         text=True,
     ).stderr
