@@ -179,19 +179,3 @@ def test_in_place_the_model_is_judged_on_the_primitives_own_motion(library):
     # the share of bounds: e taken ERROR_SPREAD larger, the mismatch as small as that leaves
     lo2 = (1e4 - ERROR_SPREAD**2) * e**2
     assert w == pytest.approx(lo2 / ((ERROR_SPREAD * e) ** 2 + lo2), rel=1e-12)
-
-
-def test_the_refined_model_is_the_same_whichever_order_the_match_gave_its_primitives(library):
-    # it is cached by the set of primitives it is fitted on, so it must not depend on their
-    # order: fitted in the order of the first path's match, a friction 5 % library's refined
-    # gain differed by 2.4e-4 (relative) between two orders, and which path a process asked
-    # for first decided the warm start of every later path (scratch, stop 32)
-    with Library(library, read_only=True) as lib:
-        bank = lib.bank("stage")
-        machine = lib.machine("stage")
-        ids = [int(i) for i in bank.ids]
-        models = []
-        for order in (ids, ids[::-1], ids[1:] + ids[:1]):
-            lib.starter.refined.clear()
-            models.append(lib.starter.refined_model(machine, bank, order).machine.to_dict())
-    assert models[1] == models[0] and models[2] == models[0]

@@ -62,9 +62,11 @@ def machine_fit(ctx: click.Context, name: str, as_json: bool) -> None:
 
     The grey-box model (friction, ripple and bias beside the linear model) and the linear
     model refined on the stored pairs: what `match --out` and `learn` otherwise fit on
-    their first warm start (most of a minute on a library learned under friction). Kept
-    until the machine's primitives or primlib change; models already kept are read, not
-    fitted again.
+    their first warm start (most of a minute on a library learned under friction). Up to
+    24 primitives they are fitted on all of them; beyond, on the library as it stood when
+    it last grew by a quarter (24, 30, 38, 48, ... primitives), so that a growing library
+    does not fit them again after every primitive it takes in. Kept until that set of
+    primitives or primlib changes; models already kept are read, not fitted again.
     """
     with _open_library(ctx) as lib:
         t0 = time.perf_counter()
@@ -72,11 +74,15 @@ def machine_fit(ctx: click.Context, name: str, as_json: bool) -> None:
         seconds = time.perf_counter() - t0
         kept = lib.starter.kept
         count = len(lib.bank(name).ids)
+    from primlib.pipeline import model_count  # the pipeline is loaded by now
+
+    used = model_count(count)
     fitted = kept.fitted > 0
     if as_json:
         out = {
             "machine": name,
             "primitives": count,
+            "fitted_on": used,
             "fitted": kept.fitted,
             "read": kept.read,
             "seconds": seconds,
@@ -93,8 +99,18 @@ def machine_fit(ctx: click.Context, name: str, as_json: bool) -> None:
     if note:
         click.echo(note)
     click.echo(f"grey-box model: {gb.describe()}")
-    if count > 24:
+    if used < count:
         click.echo(
-            "note: beyond 24 primitives the refined model depends on the primitives a path "
-            "matches; those are fitted by the warm start that needs them, and kept"
+            f"note: fitted on the oldest {used} of the {count} primitives (the library as it "
+            f"stood when it last grew by a quarter); fitted again at {_next_fit(used)}"
         )
+
+
+def _next_fit(used: int) -> int:
+    """The library size at which models fitted on ``used`` primitives are fitted again."""
+    from primlib.pipeline import model_count
+
+    k = used + 1
+    while model_count(k) == used:
+        k += 1
+    return k

@@ -26,6 +26,7 @@ _LAZY = {
     "store_learned": "primlib.pipeline._library",
     "WarmStarter": "primlib.pipeline._starter",
     "as_trajectory": "primlib.pipeline._starter",
+    "model_count": "primlib.pipeline._starter",
     "WarmStart": "primlib.pipeline._warm",
     "find_versions": "primlib.pipeline._warm",
     "stored_signals": "primlib.pipeline._warm",

@@ -21,6 +21,8 @@ left where it ran, noise that ILC learned into it included (the primitive's ``er
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from primlib.defaults import BAND_SAMPLES
@@ -30,6 +32,7 @@ from primlib.splice import StoredSignal
 from primlib.store import Bank
 
 __all__ = [
+    "pairs_on",
     "bank_origins",
     "bank_pairs",
     "choose_per_segment",
@@ -75,6 +78,20 @@ def bank_origins(bank: Bank) -> np.ndarray:
 def _paired(bank: Bank) -> np.ndarray:
     """The primitives :func:`bank_pairs` gives, in order (those of 4 samples or more)."""
     return np.flatnonzero(np.diff(np.asarray(bank.offsets)) >= 4)
+
+
+def pairs_on(gb: GreyBox, fitted: Bank, bank: Bank) -> GreyBox:
+    """``gb``, fitted on ``fitted`` (the first primitives of ``bank``: :meth:`Bank.head`),
+    with its per-pair arrays on ``bank``'s pairs: NaN for the primitives the fit has not
+    seen, as for a pair it left out."""
+    if fitted is bank:
+        return gb
+    extra = _paired(bank).size - _paired(fitted).size
+
+    def pad(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else np.vstack([a, np.full((extra, a.shape[1]), np.nan)])
+
+    return replace(gb, cv_pairs=pad(gb.cv_pairs), gap_pairs=pad(gb.gap_pairs))
 
 
 def bank_pairs(bank: Bank) -> list[Pair]:

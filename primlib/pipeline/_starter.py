@@ -11,6 +11,7 @@ machine model and primitive set). Data flows one way: the store never calls back
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import replace
@@ -30,6 +31,7 @@ from primlib.pipeline._greywarm import (
     choose_per_segment,
     linear_parts,
     pair_errors,
+    pairs_on,
     ripple_shifts,
 )
 from primlib.pipeline._learn import LearnRun, check_law, learn_on_model
@@ -40,8 +42,34 @@ from primlib.store import Bank, Store, check_origin
 
 __all__ = ["WarmStarter", "as_trajectory"]
 
-# primitives a refinement fits on (matched ones first)
+# primitives a refinement fits on (:func:`refine_ids`), and up to which the models are
+# fitted on every primitive (:func:`model_count`)
 _REFINE_MAX = 24
+_GROWTH = 1.25  # beyond, the models are fitted again when the library has grown by this factor
+
+
+def model_count(k: int) -> int:
+    """How many of a bank's ``k`` primitives (the oldest) its models are fitted on: ``k`` up
+    to 24, then the largest of 24, 30, 38, 48, ... (each ``ceil(1.25 x)`` the last) not
+    above ``k``: between two of those the models stay what they are, so a growing library
+    fits them O(log k) times, not k times."""
+    n = int(k)
+    if n <= _REFINE_MAX:
+        return max(n, 0)
+    c = _REFINE_MAX
+    while math.ceil(c * _GROWTH) <= n:
+        c = math.ceil(c * _GROWTH)
+    return c
+
+
+def refine_ids(ids: Sequence[int]) -> list[int]:
+    """The ids a refinement fits on: all of ``ids`` up to 24, else 24 spread evenly through
+    them (sorted), so that every axis and speed the library holds has its say."""
+    ids = sorted(int(i) for i in ids)
+    if len(ids) <= _REFINE_MAX:
+        return ids
+    pick = np.unique(np.linspace(0, len(ids) - 1, _REFINE_MAX).round().astype(int))
+    return [ids[j] for j in pick]
 
 
 def as_trajectory(path: Trajectory | str | PathLike) -> Trajectory:
@@ -138,29 +166,29 @@ class WarmStarter:
         self,
         machine: Machine,
         bank: Bank,
-        ids: Sequence[int],
         gb: GreyBox | None = None,
         *,
         modes: bool = True,
     ) -> RefinedModel:
-        """The model refined on the matched primitives, plus others of the bank up to 24.
+        """The model refined on the bank's stored pairs: all of them up to 24, else 24
+        spread evenly through the bank in id order (:func:`refine_ids`).
 
-        Others are added so that an axis the matched pieces do not move (a rotation can
-        move it on the new path) is refined too. With a grey-box model ``gb`` the fit sees
-        the stored inputs' linear parts (friction, ripple and bias taken out, and the rows
-        their paths do not determine replaced: :meth:`~primlib.greybox.GreyBox.clean`), so
-        those do not drive the linear model's gain, time constant and lag. ``modes``: a
-        structural mode is searched beside them (:func:`~primlib.splice.refine_machine`).
-        Cached on this object, and kept in the library (:class:`KeptModels`).
+        Whichever path asks, the same pairs: a machine is one machine, and a choice that
+        followed the path's matched primitives (as before stop 46) made every new path on a
+        library of more than 24 primitives pay its own refinement, 5-8 s on 1,000. With a
+        grey-box model ``gb`` the fit sees the stored inputs' linear parts (friction, ripple
+        and bias taken out, and the rows their paths do not determine replaced:
+        :meth:`~primlib.greybox.GreyBox.clean`), so those do not drive the linear model's
+        gain, time constant and lag. ``modes``: a structural mode is searched beside them
+        (:func:`~primlib.splice.refine_machine`). ``bank`` is the one the models are fitted
+        on (:meth:`model_bank`). Cached on this object, and kept in the library
+        (:class:`KeptModels`).
         """
         all_ids = [int(i) for i in np.asarray(bank.ids)]
-        chosen = [i for i in ids if i in all_ids]
-        chosen += [i for i in all_ids if i not in chosen][: max(0, _REFINE_MAX - len(chosen))]
-        # the fit sees the pairs in id order: the set decides the model, not which path asked
-        # first (the cache is keyed by the set; in match order a friction 5 % library's refined
-        # model, and the grey-box fitted beside it, differed in the 8th digit with the first
-        # path a process asked for, and a rotated path's model-only input 1.6e-4 against 6.8e-5)
-        chosen = sorted(chosen)
+        # in id order: the set decides the model (in match order a friction 5 % library's
+        # refined model, and the grey-box fitted beside it, differed in the 8th digit with
+        # the first path a process asked for)
+        chosen = refine_ids(all_ids)
         opts = {"chosen": chosen, "greybox": gb is not None, "modes": modes}
         # the whole bank is in the key: beside a grey-box model the fit depends on every pair
         key = fit_key("refined", machine, all_ids, **opts)
@@ -176,8 +204,9 @@ class WarmStarter:
         return self._cached(self.refined, "refined", machine.name, all_ids, key, fit)
 
     def greybox(self, machine: Machine, bank: Bank, *, linear: bool = True) -> GreyBox:
-        """The grey-box model fitted to all of the machine's stored pairs (cached);
-        ``linear``: with the linear terms (not beside a refined model)."""
+        """The grey-box model fitted to all of ``bank``'s stored pairs (cached; ``bank`` the
+        one the models are fitted on, :meth:`model_bank`); ``linear``: with the linear terms
+        (not beside a refined model)."""
         bank_ids = [int(i) for i in np.asarray(bank.ids)]
         key = fit_key("greybox", machine, bank_ids, linear=linear)
 
@@ -193,6 +222,20 @@ class WarmStarter:
             return gb
 
         return self._cached(self.greyboxes, "greybox", machine.name, bank_ids, key, fit)
+
+    def model_bank(self, bank: Bank) -> Bank:
+        """The primitives the machine's models are fitted on: the oldest
+        :func:`model_count` of ``bank`` -- all of them up to 24, then the library as it
+        stood when it last grew by a quarter (24, 30, 38, 48, ... primitives).
+
+        Fitted on every primitive, the models were fitted again after every one a library
+        took in: on 1,000 primitives each warm start after an ingest paid 11 s, and under
+        ``primlib serve``'s steady ingests every warm start did (p50 35 s where one takes
+        0.35 s). A primitive not in the fit is still matched and spliced like any other; its
+        pair's cross-validated error is unknown (NaN) to the warm start's choice, as for a
+        pair the fit left out.
+        """
+        return bank.head(model_count(len(bank)))
 
     def _cached(self, cache: OrderedDict, kind: str, name: str, ids, key: str, fit):
         """``cache[key]``, else the model kept in the library or ``fit()``
@@ -212,9 +255,8 @@ class WarmStarter:
         -------
         (refined model or None, grey-box model, note)
             The refined model is None for a machine with feedback (not refined); the note
-            says what the refinement found. Beyond 24 primitives the refined model depends
-            on the primitives a path matched (:meth:`refined_model`): the one returned is
-            fitted on the first 24 and others on the warm starts that need them.
+            says what the refinement found. Every warm start on the machine uses these
+            two until the library has grown by a quarter (:meth:`model_bank`).
 
         Raises
         ------
@@ -345,12 +387,15 @@ class WarmStarter:
         beside the refined model; the splice then carries the stored inputs' linear parts.
         """
         gb = model = None
+        fit_on = self.model_bank(bank)
         if greybox:
-            gb = self.greybox(m, bank)
+            gb = self.greybox(m, fit_on)
         if refine and (ids or gb is not None) and not m.feedback:
-            model = self.refined_model(m, bank, ids, gb, modes=modes)
+            model = self.refined_model(m, fit_on, gb, modes=modes)
             if gb is not None:
-                gb = self.greybox(model.machine, bank, linear=False)
+                gb = self.greybox(model.machine, fit_on, linear=False)
+        if gb is not None:
+            gb = pairs_on(gb, fit_on, bank)
         if not ids:
             return model, gb, {}
         if gb is None:

@@ -26,9 +26,9 @@ if TYPE_CHECKING:
 __all__ = ["read_fitted", "keep_fitted", "fitted_rows", "KEEP_PER_MACHINE"]
 
 KEEP_PER_MACHINE = 64
-"""Rows kept per machine: beyond a bank of 24 primitives the refined model depends on the
-primitives a path matched (:meth:`primlib.pipeline.WarmStarter.refined_model`), one row per
-set; the oldest are dropped beyond this."""
+"""Rows kept per machine (a warm start keeps three: the grey-box model, the refined model and
+the grey-box model beside it; options such as ``modes`` add others); the oldest are dropped
+beyond this."""
 
 
 def read_fitted(store: Store, key: str) -> bytes | None:

@@ -267,6 +267,36 @@ class Bank:
             float(self.durations[i]),
         )
 
+    def head(self, n: int) -> Bank:
+        """The bank of the first ``n`` primitives (the oldest: ids never come back), sharing
+        this bank's arrays (views) and its signals (read through this bank, once)."""
+        n = max(0, min(int(n), len(self)))
+        if n == len(self):
+            return self
+        s, c, k = int(self.offsets[n]), int(self.ctrl_offsets[n]), int(self.knot_offsets[n])
+        loader = None
+        if self.load_signals is not None or self._signals:
+            loader = lambda: self.signals[:s]  # noqa: E731  lazily, as this bank's own
+        return Bank(
+            machine=self.machine,
+            dt=self.dt,
+            dim=self.dim,
+            ids=self.ids[:n],
+            names=self.names[:n],
+            durations=self.durations[:n],
+            offsets=self.offsets[: n + 1],
+            points=self.points[:s],
+            degrees=self.degrees[:n],
+            knots=self.knots[:k],
+            knot_offsets=self.knot_offsets[: n + 1],
+            ctrlpts=self.ctrlpts[:c],
+            weights=self.weights[:c],
+            ctrl_offsets=self.ctrl_offsets[: n + 1],
+            origins=self.origins[:n],
+            errors=self.errors[:n],
+            load_signals=loader,
+        )
+
     def __repr__(self) -> str:
         return (
             f"Bank(machine={self.machine!r}, {len(self)} primitives, "
