@@ -35,13 +35,15 @@ def test_model_count_is_every_primitive_up_to_24_then_grows_by_quarters():
     assert model_count(1000) == 888 and model_count(1110) == 1110
 
 
-def test_refine_ids_are_all_up_to_24_then_24_spread_through_the_library():
+def test_refine_ids_are_all_within_the_sample_budget_else_spread_through_the_library():
     assert refine_ids([5, 3, 9]) == [3, 5, 9]
-    ids = list(range(100, 400, 3))
-    picked = refine_ids(ids[::-1])
-    assert len(picked) == 24 and picked == sorted(set(picked))
-    assert picked[0] == ids[0] and picked[-1] == ids[-1]
-    assert set(picked) <= set(ids)
+    ids = list(range(100, 400, 3))  # 100 primitives
+    for sizes, count in ((None, 24), ([2000] * 100, 24), ([401] * 100, 100), ([800] * 100, 60),
+                         ([10_000] * 100, 24)):  # fmt: skip
+        picked = refine_ids(ids[::-1], sizes)
+        assert len(picked) == count and picked == sorted(set(picked))
+        assert picked[0] == ids[0] and picked[-1] == ids[-1]
+        assert set(picked) <= set(ids)
 
 
 def _primitive(rng, n: int) -> np.ndarray:
