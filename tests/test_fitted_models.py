@@ -169,6 +169,30 @@ def test_removing_the_machine_removes_its_models(kept_db):
         assert fitted_rows(lib) == []
 
 
+def test_a_duplicate_key_from_a_concurrent_keeper_is_a_busy_library(kept_db, monkeypatch):
+    # two server readers keeping one model at once: besides the conflict at commit, DuckDB
+    # can refuse the insert itself with a duplicate key (1 in ~300 in a two-thread stress of
+    # keep_fitted, scratch, stop 46), which reached a client as an internal error
+    with Library(kept_db) as lib:
+        before = fitted_rows(lib)
+        con = lib._writable()
+
+        class Refusing:  # the connection, whose inserts meet the other keeper's row
+            def execute(self, sql, *args):
+                if sql.startswith("INSERT"):
+                    raise duckdb.ConstraintException('Duplicate key "key: k" violates primary key')
+                return con.execute(sql, *args)
+
+            def __getattr__(self, name):
+                return getattr(con, name)
+
+        monkeypatch.setattr(lib, "_writable", lambda: Refusing())
+        with pytest.raises(LibraryBusyError, match="not kept"):
+            keep_fitted(lib, "stage", "other", "code", [("k", "greybox", b"x")])
+        monkeypatch.undo()
+        assert fitted_rows(lib) == before  # the delete of the old rows rolled back too
+
+
 # ---------------------------------------------------------------------------- the commands
 def _csv(tmp_path, path) -> str:
     traj, _ = path
