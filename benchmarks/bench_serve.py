@@ -189,7 +189,11 @@ def main(argv: list[str] | None = None) -> int:
             held = {p.id for p in Client(server.url).primitives(machine="xyz")}
         finally:
             server.stop()
-    return report(args, load, held, local_s, np.array_equal(first_u, local_u))
+        log = server.log.read_text(errors="replace") if load.failures else ""
+    code = report(args, load, held, local_s, np.array_equal(first_u, local_u))
+    if log:  # what the failed requests raised, from the server's log (gone with the folder)
+        print("server log, last lines:\n" + "\n".join(log.splitlines()[-40:]))
+    return code
 
 
 def report(args, load: Load, held: set[int], local_s: float, same: bool) -> int:
