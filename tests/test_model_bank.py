@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 
+import duckdb
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -14,7 +16,7 @@ from match_helpers import ROOT
 
 from primlib.cli import main
 from primlib.nurbs import Trajectory
-from primlib.pipeline import Library, model_count
+from primlib.pipeline import FitShare, Library, model_count
 from primlib.pipeline._greywarm import pair_mismatch
 from primlib.pipeline._starter import refine_ids
 from primlib.plant import Machine, invert
@@ -126,3 +128,48 @@ def test_machine_fit_says_which_primitives_the_models_are_fitted_on(grown, tmp_p
     while model_count(k) == out["fitted_on"]:
         k += 1
     assert f"fitted again at {k}" in res.output
+
+
+def test_connections_sharing_fits_fit_each_model_once(grown, tmp_path):
+    # primlib serve's readers at a size where the models are fitted again: the one that
+    # starts fits, the other waits for its model (two fits of 11 s at once on 1,000
+    # primitives, on the same cores, before)
+    db, _ = grown
+    copy = tmp_path / "lib.duckdb"
+    copy.write_bytes(db.read_bytes())
+    with duckdb.connect(str(copy)) as con:
+        con.execute("DELETE FROM fitted_models")
+    share = FitShare()
+    libs = [Library(copy) for _ in range(2)]
+    try:
+        for lib in libs:
+            lib.starter.kept.share = share
+        path = _path(libs[0], [2, 7], 5)
+        out = [None, None]
+
+        def run(j: int) -> None:
+            out[j] = libs[j].warm_start(path, "xyz", eps=0.05).u
+
+        threads = [threading.Thread(target=run, args=(j,)) for j in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert sum(lib.starter.kept.fitted for lib in libs) == 3
+        assert sum(lib.starter.kept.read for lib in libs) == 3
+        np.testing.assert_array_equal(out[0], out[1])
+    finally:
+        for lib in libs:
+            lib.close()
+
+
+def test_a_failed_fit_leaves_the_next_thread_to_fit():
+    share = FitShare()
+
+    def boom():
+        raise RuntimeError("no")
+
+    with pytest.raises(RuntimeError):
+        share.fit("k", boom)
+    assert share.fit("k", lambda: 42) == (42, True)
+    assert share.fit("k", lambda: 43) == (42, False)

@@ -27,6 +27,7 @@ _LAZY = {
     "WarmStarter": "primlib.pipeline._starter",
     "as_trajectory": "primlib.pipeline._starter",
     "model_count": "primlib.pipeline._starter",
+    "FitShare": "primlib.pipeline._fitted",
     "WarmStart": "primlib.pipeline._warm",
     "find_versions": "primlib.pipeline._warm",
     "stored_signals": "primlib.pipeline._warm",

@@ -46,12 +46,16 @@ class Service:
         import primlib.plant  # noqa: F401
         import primlib.splice  # noqa: F401
         from primlib import Library
+        from primlib.pipeline import FitShare
 
         self.db = db
         self._library_class = Library
+        # a model one reader is fitting, the others wait for (FitShare): fitted once
+        self._fits = FitShare()
         # The writer opens (and, for a new file, creates and migrates) the file first, so
         # the readers find a current schema.
         self._writer_lib = Library(db)
+        self._writer_lib.starter.kept.share = self._fits
         self._libraries = [self._writer_lib]
         self._lock = threading.Lock()
         self._local = threading.local()
@@ -64,6 +68,7 @@ class Service:
         lib = getattr(self._local, "library", None)
         if lib is None:
             lib = self._library_class(self.db)
+            lib.starter.kept.share = self._fits
             self._local.library = lib
             with self._lock:
                 self._libraries.append(lib)
