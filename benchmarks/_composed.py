@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from _pieces import joined
 
 from primlib.match import BankIndex, match_path
 from primlib.nurbs import Trajectory
@@ -73,22 +73,10 @@ def first_call(db: Path, machine: str, path: Trajectory, repeat: int = 3):
 
 def build_path(lib: Library, machine: Machine, seed: int = 1):
     """The 5 pieces, each rotated at random, joined end to start, fitted as one path."""
-    rng = np.random.default_rng(seed)
     bank = lib.bank(machine.name)
-    dt = machine.dt
-    out, last = [], np.zeros(3)
-    truth = []
-    for row, v0, k, n in PIECES:
-        traj = bank.trajectory(row)
-        v1 = v0 + k * (n - 1) * dt / traj.duration
-        pts = traj.at(np.linspace(v0, v1, n))
-        pts = pts @ Rotation.random(random_state=int(rng.integers(2**31))).as_matrix().T
-        pts += last - pts[0]
-        last = pts[-1]
-        out.append(pts if not out else pts[1:])
-        truth.append(int(bank.ids[row]))
-    pts = np.concatenate(out)
-    return Trajectory.from_samples(pts, dt), truth
+    pieces = [(bank.trajectory(row), v0, k, n) for row, v0, k, n in PIECES]
+    path = joined(pieces, np.random.default_rng(seed), machine.dt)
+    return path, [int(bank.ids[row]) for row, *_ in PIECES]
 
 
 def worker(spec: dict) -> dict:

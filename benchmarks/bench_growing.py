@@ -36,6 +36,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _pieces import joined
 from _revisions import alternated, run_worker
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -92,23 +93,11 @@ def build(db: Path, k: int) -> None:
 
 def new_path(lib, seed: int):
     """Five pieces of random primitives of the library, rotated and time-scaled."""
-    from scipy.spatial.transform import Rotation
-
-    from primlib.nurbs import Trajectory
-
     bank = lib.bank("xyz")
     rng = np.random.default_rng(1000 + seed)
     rows = rng.choice(len(bank.ids), size=len(PIECES), replace=False)
-    out, last = [], np.zeros(3)
-    for row, (v0, scale, n) in zip(rows, PIECES, strict=True):
-        traj = bank.trajectory(int(row))
-        v1 = v0 + scale * (n - 1) * bank.dt / traj.duration
-        pts = traj.at(np.linspace(v0, v1, n))
-        pts = pts @ Rotation.random(random_state=int(rng.integers(2**31))).as_matrix().T
-        pts += last - pts[0]
-        last = pts[-1]
-        out.append(pts if not out else pts[1:])
-    return Trajectory.from_samples(np.concatenate(out), bank.dt)
+    pieces = [(bank.trajectory(int(r)), *piece) for r, piece in zip(rows, PIECES, strict=True)]
+    return joined(pieces, rng, bank.dt)
 
 
 def _timed_warm(lib, path, run, origin=None) -> tuple[float, float]:

@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout too
 sys.path.insert(0, str(ROOT / "tests"))
 
-from scipy.spatial.transform import Rotation  # noqa: E402
+from _pieces import joined  # noqa: E402
 from serve_helpers import Server  # noqa: E402
 
 import primlib as pl  # noqa: E402
@@ -75,17 +75,9 @@ def build(db: Path, k: int, samples: int = 2400, seed: int = 0) -> Trajectory:
         lib.add_machine(machine)
         items = [(*random_primitive(rng, machine.dt), f"r{i}", None) for i in range(k)]
         lib.add_many(items, machine.name)
-    out, last = [], np.zeros(3)
-    for row, v0, scale, n in PIECES:
-        n = max(8, round(n * samples / 2400))
-        traj = items[row][0]
-        v1 = v0 + scale * (n - 1) * machine.dt / traj.duration
-        pts = traj.at(np.linspace(v0, v1, n))
-        pts = pts @ Rotation.random(random_state=int(rng.integers(2**31))).as_matrix().T
-        pts += last - pts[0]
-        last = pts[-1]
-        out.append(pts if not out else pts[1:])
-    return Trajectory.from_samples(np.concatenate(out), machine.dt)
+    pieces = [(items[row][0], v0, scale, max(8, round(n * samples / 2400)))
+              for row, v0, scale, n in PIECES]  # fmt: skip
+    return joined(pieces, rng, machine.dt)
 
 
 def in_process(db: Path, path: Trajectory, repeat: int = 3) -> tuple[float, np.ndarray]:
