@@ -173,3 +173,27 @@ def test_a_failed_fit_leaves_the_next_thread_to_fit():
         share.fit("k", boom)
     assert share.fit("k", lambda: 42) == (42, True)
     assert share.fit("k", lambda: 43) == (42, False)
+
+
+def test_learn_ingest_keeps_its_models_for_the_next_command(grown, tmp_path):
+    # below the next size the stored primitive leaves the models valid: the next command
+    # reads them (it fitted them again, until stop 46)
+    db, _ = grown
+    copy = tmp_path / "lib.duckdb"
+    copy.write_bytes(db.read_bytes())
+    with duckdb.connect(str(copy)) as con:
+        con.execute("DELETE FROM fitted_models")
+    with Library(copy, read_only=True) as lib:
+        count = len(lib.bank("xyz").ids)
+        path = _path(lib, [4, 9], 6)
+    assert model_count(count + 1) == model_count(count)
+    csv = tmp_path / "new.csv"
+    path.to_csv(csv, DT)
+    args = ["--db", str(copy), "learn", str(csv), "--machine", "xyz", "--eps", "0.05"]
+    res = CliRunner().invoke(main, [*args, "--iterations", "1", "--ingest"])
+    assert res.exit_code == 0, res.output
+    assert "kept the 3 model(s)" in res.output and "stored primitive" in res.output
+    res = CliRunner().invoke(main, ["--db", str(copy), "machine", "fit", "xyz", "--json"])
+    out = json.loads(res.output)
+    assert out["primitives"] == count + 1
+    assert (out["fitted"], out["read"]) == (0, 3)

@@ -206,9 +206,7 @@ def learn(
         if plot_file is not None and run.start == "warm":
             cold_run = lib.starter.learn(trajectory, machine_name, cold=True, contour=False, **opts)
     new_id = None
-    if not ingest:  # a stored primitive changes the set the models were fitted to
-        keep_models(db, lib, say=not as_json)
-    else:
+    if ingest:
         # Readers open the file for moments; after a learning run that may have taken minutes,
         # wait for them rather than throw the result away.
         with _open_waiting(db, STORE_WAIT, create=False) as store:
@@ -220,6 +218,10 @@ def learn(
                 name=stored_name,
                 source=f"{path} (primlib learn, {run.start} start)",
             )
+    # the models are fitted on the library as it last stood at a quarter's growth: the stored
+    # primitive leaves them valid below the next such size (and beyond, the rows kept are
+    # never read, and go with the next keep)
+    keep_models(db, lib, say=not as_json)
     if plot_file is not None:
         _plot(plot_file, trajectory, run, cold_run)
     if as_json:
