@@ -130,15 +130,20 @@ def test_machine_fit_says_which_primitives_the_models_are_fitted_on(grown, tmp_p
     assert f"fitted again at {k}" in res.output
 
 
-def test_connections_sharing_fits_fit_each_model_once(grown, tmp_path):
-    # primlib serve's readers at a size where the models are fitted again: the one that
-    # starts fits, the other waits for its model (two fits of 11 s at once on 1,000
-    # primitives, on the same cores, before)
-    db, _ = grown
+def _without_models(db, tmp_path):
+    """A copy of the library file ``db`` with no models kept."""
     copy = tmp_path / "lib.duckdb"
     copy.write_bytes(db.read_bytes())
     with duckdb.connect(str(copy)) as con:
         con.execute("DELETE FROM fitted_models")
+    return copy
+
+
+def test_connections_sharing_fits_fit_each_model_once(grown, tmp_path):
+    # primlib serve's readers at a size where the models are fitted again: the one that
+    # starts fits, the other waits for its model (two fits of 11 s at once on 1,000
+    # primitives, on the same cores, before)
+    copy = _without_models(grown[0], tmp_path)
     share = FitShare()
     libs = [Library(copy) for _ in range(2)]
     try:
@@ -178,11 +183,7 @@ def test_a_failed_fit_leaves_the_next_thread_to_fit():
 def test_learn_ingest_keeps_its_models_for_the_next_command(grown, tmp_path):
     # below the next size the stored primitive leaves the models valid: the next command
     # reads them (it fitted them again, until stop 46)
-    db, _ = grown
-    copy = tmp_path / "lib.duckdb"
-    copy.write_bytes(db.read_bytes())
-    with duckdb.connect(str(copy)) as con:
-        con.execute("DELETE FROM fitted_models")
+    copy = _without_models(grown[0], tmp_path)
     with Library(copy, read_only=True) as lib:
         count = len(lib.bank("xyz").ids)
         path = _path(lib, [4, 9], 6)
