@@ -126,7 +126,7 @@ def _xyz_case(lib):
 
 def _stage_case(lib):
     """The same on the stage library: loops of other sizes, turned, at random places."""
-    from stage_helpers import STAGE, loop, stage_pair
+    from stage_helpers import STAGE, add_loop, loop
 
     from primlib.nurbs import Trajectory
 
@@ -143,9 +143,7 @@ def _stage_case(lib):
     def add(j: int) -> None:
         origin = tuple(rng.uniform(10, 75, 2))
         pts = loop(401, rng.uniform(8, 15), rng.uniform(0.75, 1.5), rng.uniform(0, 3))
-        pair = stage_pair(pts, origin)
-        traj = Trajectory.from_samples(pair.y + pair.origin, STAGE.dt)
-        lib.add(traj, pair.u, "stage", name=f"new{j}", origin=origin)
+        add_loop(lib, pts, origin, f"new{j}")
 
     return path, (lambda u, o: STAGE.simulate(u, start=o)), add
 

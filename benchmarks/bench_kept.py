@@ -38,9 +38,8 @@ sys.path.insert(0, str(ROOT))  # this checkout's primlib, as in the processes it
 
 def stage_library(folder: Path, primitives: int, samples: int) -> tuple[Path, str, Path]:
     """A library of loops learned on the example stage, and a new path's CSV."""
-    from stage_helpers import STAGE, loop, nominal, stage_pair
+    from stage_helpers import STAGE, add_loop, loop, nominal
 
-    from primlib.nurbs import Trajectory
     from primlib.pipeline import Library
 
     db = folder / "stage.duckdb"
@@ -50,9 +49,7 @@ def stage_library(folder: Path, primitives: int, samples: int) -> tuple[Path, st
         for k in range(primitives):
             size, turns, phase = rng.uniform(8, 15), rng.uniform(0.75, 1.5), rng.uniform(0, 3)
             origin = tuple(rng.uniform(10, 75, 2))
-            p = stage_pair(loop(samples, size, turns, phase), origin)
-            traj = Trajectory.from_samples(p.y + p.origin, STAGE.dt)
-            lib.add(traj, p.u, "stage", name=f"loop-{k}", origin=origin)
+            add_loop(lib, loop(samples, size, turns, phase), origin, f"loop-{k}")
     pts = loop(601, 9.0, 1.2, 0.8)
     a = np.deg2rad(30.0)
     new = (pts - pts[0]) @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])

@@ -40,6 +40,17 @@ def stage_pair(path: np.ndarray, origin, iterations: int = 12) -> Pair:
     return Pair(u, path, np.asarray(origin, float))
 
 
+def add_loop(lib, path: np.ndarray, origin, name: str, iterations: int = 12) -> Pair:
+    """Learn ``path`` on the stage at ``origin`` (:func:`stage_pair`) and store it in ``lib``
+    (machine ``stage``) with where it ran; the pair."""
+    from primlib.nurbs import Trajectory
+
+    pair = stage_pair(path, origin, iterations)
+    traj = Trajectory.from_samples(pair.y + pair.origin, STAGE.dt)
+    lib.add(traj, pair.u, "stage", name=name, origin=origin)
+    return pair
+
+
 def run_learner(model: Machine, runner, ref: np.ndarray, trials: int):
     """The noise-aware trial learner on ``model`` from the model's inverse, ``trials`` runs of
     ``runner`` (a machine's :meth:`trials`): the learner, the inputs run and the outputs

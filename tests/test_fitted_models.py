@@ -11,7 +11,7 @@ import duckdb
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from stage_helpers import STAGE, loop, nominal, stage_pair
+from stage_helpers import STAGE, add_loop, loop, nominal
 
 import primlib.pipeline._fitted as fitted_mod
 import primlib.pipeline._starter as starter_mod
@@ -35,9 +35,7 @@ SHAPES = [
 
 def _add(lib, k: int) -> None:
     n, size, turns, phase = SHAPES[k]
-    p = stage_pair(loop(n, size, turns, phase), ORIGINS[k])
-    traj = Trajectory.from_samples(p.y + p.origin, STAGE.dt)
-    lib.add(traj, p.u, "stage", name=f"loop-{k}", origin=ORIGINS[k])
+    add_loop(lib, loop(n, size, turns, phase), ORIGINS[k], f"loop-{k}")
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stage_helpers import STAGE, loop, nominal, stage_pair
+from stage_helpers import STAGE, add_loop, loop, nominal
 
 from primlib import InputError
 from primlib.nurbs import Trajectory
@@ -25,9 +25,7 @@ def library(tmp_path_factory):
     with Library(db) as lib:
         lib.add_machine(nominal())
         for (n, size, turns, phase), origin in zip(SHAPES, ORIGINS, strict=True):
-            p = stage_pair(loop(n, size, turns, phase), origin)
-            traj = Trajectory.from_samples(p.y + p.origin, STAGE.dt)
-            lib.add(traj, p.u, "stage", name=f"loop-{n}-{turns}", origin=origin)
+            add_loop(lib, loop(n, size, turns, phase), origin, f"loop-{n}-{turns}")
     return db
 
 
