@@ -209,7 +209,8 @@ class KeptModels:
     def get(self, kind: str, machine: str, ids: Sequence[int], key: str, fit: Callable[[], Any]):
         """The model kept under ``key``, else ``fit()`` (kept, or queued in :attr:`pending`).
 
-        ``machine`` names the store's machine, ``ids`` are all its primitive ids.
+        ``machine`` names the store's machine, ``ids`` the primitives the model is fitted
+        on (:meth:`~primlib.pipeline.WarmStarter.model_bank`).
         """
         payload = read_fitted(self.store, key)
         if payload is not None:
