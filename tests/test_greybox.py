@@ -212,6 +212,30 @@ def test_the_ripple_grid_scored_in_batches_is_the_one_frequency_formula():
     assert abs(ws[np.argmin(batched)] - 1.2566) < ws[1] - ws[0]  # and it finds the ripple
 
 
+def test_every_folds_ripple_search_is_its_own_least_squares_from_one_pass():
+    # the whole data's and each fold's SSE per frequency from per-fold partial sums (a
+    # training set's normal equations are the whole's less its fold's) are each training
+    # set's own least squares, to round-off and the ridge (relative 1e-8 of a diagonal)
+    from primlib.greybox import _lsq, _ripple
+
+    rng = np.random.default_rng(1)
+    n = 1200
+    folds = np.repeat(np.arange(5), [300, 200, 250, 150, 300])
+    A = rng.standard_normal((n, 4))
+    x = np.cumsum(rng.uniform(-0.05, 0.2, n))
+    step = np.diff(x, append=x[-1])
+    on = rng.random(n) > 0.1
+    r = 0.3 * np.sin(1.2566 * x) + A @ rng.standard_normal(4) + 0.01 * rng.standard_normal(n)
+    labels, cuts, train = _ripple._fold_layout(folds)
+    assert labels.tolist() == [0, 1, 2, 3, 4] and train.shape == (6, n)
+    S = ripple_grid(x, step, np.linspace(0.5, 3.0, 23), on)
+    shared = _ripple._FoldSums(A, r, cuts).sse(S)
+    for v, t in enumerate(train):
+        At, rt = _lsq.standardised(A)[0][t], r[t]
+        own = _ripple.sse_batch(At, At.T @ At, At.T @ rt, float(rt @ rt), rt, S[:, :, t])
+        assert np.allclose(shared[v], own, rtol=0, atol=1e-9 * float(rt @ rt)), v
+
+
 def _smooth_path(n: int, rng, still: int | None) -> np.ndarray:
     """A rest-to-rest 3-D path (mm) with a reversal or two per axis; axis ``still`` rests."""
     s = np.linspace(0.0, 1.0, n)[:, None]

@@ -62,7 +62,7 @@ def machine_fit(ctx: click.Context, name: str, as_json: bool) -> None:
 
     The grey-box model (friction, ripple and bias beside the linear model) and the linear
     model refined on the stored pairs: what `match --out` and `learn` otherwise fit on
-    their first warm start (most of a minute on a library learned under friction). Up to
+    their first warm start (13 s on 14 loops learned under friction and ripple). Up to
     24 primitives they are fitted on all of them; beyond, on the library as it stood when
     it last grew by a quarter (24, 30, 38, 48, ... primitives), so that a growing library
     does not fit them again after every primitive it takes in. Kept until that set of
