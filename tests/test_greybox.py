@@ -214,7 +214,7 @@ def test_the_ripple_grid_scored_in_batches_is_the_one_frequency_formula():
 
 def test_every_folds_ripple_search_is_its_own_least_squares_from_one_pass():
     # the whole data's and each fold's SSE per frequency from per-fold partial sums (a
-    # training set's normal equations are the whole's less its fold's) are each training
+    # training set's normal equations are the sum of the other folds') are each training
     # set's own least squares, to round-off and the ridge (relative 1e-8 of a diagonal)
     from primlib.greybox import _lsq, _ripple
 

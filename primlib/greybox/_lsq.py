@@ -33,13 +33,43 @@ def solve(F: np.ndarray, r: np.ndarray, cols: list[int]) -> np.ndarray:
     return coef
 
 
+def _solve_normal(G: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """:func:`solve` from the normal equations of its columns over ``n`` rows (``G`` = MᵀM,
+    ``b`` = Mᵀr): the same standardisation (each column's RMS from G's diagonal), the same
+    ridge; the coefficients of those columns."""
+    scale = np.sqrt(np.maximum(np.diag(G), 0.0) / max(n, 1))
+    live = scale > 1e-12 * max(float(scale.max(initial=0.0)), 1e-300)
+    coef = np.zeros(G.shape[0])
+    if not np.any(live):
+        return coef
+    s = scale[live]
+    Gs = G[np.ix_(live, live)] / np.outer(s, s)
+    Gs[np.diag_indices_from(Gs)] += RIDGE * max(float(np.trace(Gs)) / len(Gs), 1e-300)
+    coef[live] = np.linalg.solve(Gs, b[live] / s) / s
+    return coef
+
+
 def cv_error(F: np.ndarray, r: np.ndarray, cols: list[int], folds: np.ndarray) -> np.ndarray:
-    """Each row's error when its fold is held out of the fit, shape (n,)."""
+    """Each row's error when its fold is held out of the fit (:func:`solve` on the other
+    folds' rows), shape (n,).
+
+    Each fold's normal equations are formed once and a training set's are the sum of the
+    other folds' (one pass over the rows; five copies of 80 % of them before stop 47, most of
+    a cross-validation's time on a 400,000-row axis): summed, not the whole's less the
+    fold's, which would cancel a column the training rows barely hold into noise that the
+    standardisation then takes for a live column."""
     err = np.empty_like(r)
+    M = F[:, cols]
+    parts = []
     for k in np.unique(folds):
         test = folds == k
-        c = solve(F[~test], r[~test], cols)
-        err[test] = r[test] - F[test] @ c
+        Mk, rk = M[test], r[test]
+        parts.append((test, Mk, rk, Mk.T @ Mk, Mk.T @ rk, rk.size))
+    for j, (test, Mk, rk, _, _, _) in enumerate(parts):
+        rest = [p for i, p in enumerate(parts) if i != j]
+        G = sum((p[3] for p in rest), np.zeros((M.shape[1], M.shape[1])))
+        b = sum((p[4] for p in rest), np.zeros(M.shape[1]))
+        err[test] = rk - Mk @ _solve_normal(G, b, sum(p[5] for p in rest))
     return err
 
 

@@ -65,7 +65,7 @@ class _FoldSums:
     training rows at once, from per-fold partial sums: rows in fold order (fold j the rows
     ``cuts[j]:cuts[j + 1]``), the base columns ``A`` standardised over all of them, target
     ``rr``. Objective 0 is all rows, objective 1 + j all rows but fold j's: a training set's
-    sums are the whole's less the fold's, so one pass over the rows scores a frequency for
+    sums are the other folds', so one pass over the rows scores a frequency for
     the whole data and every fold (six searches of the same rows before, one each)."""
 
     def __init__(self, A: np.ndarray, rr: np.ndarray, cuts: np.ndarray) -> None:
@@ -89,9 +89,10 @@ class _FoldSums:
 
 def _objectives(parts: np.ndarray) -> np.ndarray:
     """Per-fold sums (J, ...) to the sums of every objective (1 + J, ...): all folds, then
-    all but each fold."""
-    total = parts.sum(axis=0)
-    return np.concatenate([total[None], total[None] - parts])
+    all but each fold (summed, not the whole's less the fold's: no cancellation)."""
+    every = np.arange(parts.shape[0])
+    rest = [parts[every != k].sum(axis=0) for k in every]
+    return np.stack([parts.sum(axis=0), *rest])
 
 
 def _fold_layout(folds: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
