@@ -21,3 +21,11 @@ def benchmark_modules(*names: str) -> Iterator[tuple[ModuleType, ...]]:
         yield tuple(importlib.import_module(n) for n in names)
     finally:
         sys.path.remove(str(BENCH))
+
+
+def bench_output(name: str, args: list[str], monkeypatch, capsys) -> str:
+    """What benchmark ``name``'s ``main`` prints when run with command-line ``args``."""
+    with benchmark_modules(name) as (bench,):
+        monkeypatch.setattr(sys, "argv", [f"{name}.py", *args])
+        bench.main()
+    return capsys.readouterr().out

@@ -3,20 +3,14 @@ the two fits timed in a fresh process."""
 
 from __future__ import annotations
 
-import sys
-
 import pytest
-from bench_import import benchmark_modules
+from bench_import import bench_output
 
 
 @pytest.mark.slow  # a stage library of 3 loops learned by ILC, the models fitted (~10 s)
 def test_greybox_benchmark_runs_small(monkeypatch, capsys):
-    with benchmark_modules("bench_greybox") as (bench,):
-        argv = ["bench_greybox.py", "--primitives", "3", "--samples", "401", "--rounds", "1",
-                "--no-baseline"]  # fmt: skip
-        monkeypatch.setattr(sys, "argv", argv)
-        bench.main()
-    out = capsys.readouterr().out
+    args = ["--primitives", "3", "--samples", "401", "--rounds", "1", "--no-baseline"]
+    out = bench_output("bench_greybox", args, monkeypatch, capsys)
     assert "library: 3 loops of 401 samples learned on the stage" in out
     rows = {line[:44].strip(): float(line[44:].split()[0]) for line in out.splitlines()[2:]}
     assert 0 < rows["fit_greybox, linear terms and not"] < rows["machine fit (every model)"]

@@ -3,20 +3,14 @@ warm start of new paths and one after an ingest, timed, with the first-trial err
 
 from __future__ import annotations
 
-import sys
-
 import pytest
-from bench_import import benchmark_modules
+from bench_import import bench_output
 
 
 @pytest.mark.slow  # a fresh process fitting the models of 26 primitives (~5 s)
 def test_growing_benchmark_runs_small(monkeypatch, capsys):
-    with benchmark_modules("bench_growing") as (bench,):
-        argv = ["bench_growing.py", "--primitives", "26", "--paths", "1", "--ingests", "1",
-                "--no-baseline"]  # fmt: skip
-        monkeypatch.setattr(sys, "argv", argv)
-        bench.main()
-    out = capsys.readouterr().out
+    args = ["--primitives", "26", "--paths", "1", "--ingests", "1", "--no-baseline"]
+    out = bench_output("bench_growing", args, monkeypatch, capsys)
     assert "library: 26 XYZ motions" in out
     cells = [(line[:38].strip(), line[38:].split()[:1]) for line in out.splitlines()]
     rows = {label: float(v[0]) for label, v in cells if label and v and _number(v[0])}
