@@ -11,7 +11,7 @@ import numpy as np
 from scipy import optimize
 
 from primlib.greybox._features import POSITION, TERMS, ripple_columns, ripple_grid
-from primlib.greybox._lsq import RIDGE, rms, solve, standardised, through_model
+from primlib.greybox._lsq import RIDGE, fold_totals, rms, solve, standardised, through_model
 
 __all__ = ["RIPPLE", "grid_step", "output_columns", "ripple_choice", "ripple_polish", "sse_batch"]
 
@@ -69,30 +69,22 @@ class _FoldSums:
     the whole data and every fold (six searches of the same rows before, one each)."""
 
     def __init__(self, A: np.ndarray, rr: np.ndarray, cuts: np.ndarray) -> None:
-        self.A, self.rr, self.cuts = standardised(A)[0], rr, cuts
+        self.A, self.rr = standardised(A)[0], rr
         parts = [slice(int(lo), int(hi)) for lo, hi in zip(cuts[:-1], cuts[1:], strict=True)]
         self.parts = parts
         G = np.stack([self.A[s].T @ self.A[s] for s in parts])
         b = np.stack([self.A[s].T @ rr[s] for s in parts])
         r2 = np.array([float(rr[s] @ rr[s]) for s in parts])
-        self.G00, self.b0, self.r2 = _objectives(G), _objectives(b), _objectives(r2)
+        self.G00, self.b0, self.r2 = fold_totals(G), fold_totals(b), fold_totals(r2)
 
     def sse(self, S: np.ndarray) -> np.ndarray:
         """SSE per objective and frequency of the batch ``S`` (B, 2, r), shape (1 + J, B)."""
         SA = np.stack([S[:, :, s] @ self.A[s] for s in self.parts])
         SS = np.stack([S[:, :, s] @ S[:, :, s].transpose(0, 2, 1) for s in self.parts])
         Sr = np.stack([S[:, :, s] @ self.rr[s] for s in self.parts])
-        SA, SS, Sr = _objectives(SA), _objectives(SS), _objectives(Sr)
+        SA, SS, Sr = fold_totals(SA), fold_totals(SS), fold_totals(Sr)
         lead = (slice(None), None)
         return _bordered(self.G00[lead], self.b0[lead], self.r2[lead], SA, SS, Sr)
-
-
-def _objectives(parts: np.ndarray) -> np.ndarray:
-    """Per-fold sums (J, ...) to the sums of every objective (1 + J, ...): all folds, then
-    all but each fold (summed, not the whole's less the fold's: no cancellation)."""
-    every = np.arange(parts.shape[0])
-    rest = [parts[every != k].sum(axis=0) for k in every]
-    return np.stack([parts.sum(axis=0), *rest])
 
 
 def _fold_layout(folds: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
