@@ -19,7 +19,7 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 
-__all__ = ["ROOT", "alternated", "checkout_env", "extract", "run_worker"]
+__all__ = ["ROOT", "alternated", "checkout_env", "extract", "run_worker", "without_kept"]
 
 
 def checkout_env() -> dict[str, str]:
@@ -28,6 +28,18 @@ def checkout_env() -> dict[str, str]:
     env = dict(os.environ, MPLBACKEND="Agg")
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
     return env
+
+
+def without_kept(src: str | Path, dst: str | Path) -> None:
+    """A copy of library file ``src`` at ``dst`` without the models kept in it, so that the
+    run timed on it fits them (as every tree's first warm start did before they were kept)."""
+    import shutil
+
+    import duckdb
+
+    shutil.copyfile(src, dst)
+    with duckdb.connect(str(dst)) as con:
+        con.execute("DELETE FROM fitted_models")
 
 
 def extract(rev: str, folder: str | Path) -> Path:

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import statistics
 import sys
 import tempfile
@@ -31,7 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _revisions import alternated, run_worker
+from _revisions import alternated, run_worker, without_kept
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINE = "95dd56c"  # main before the folds' ripple searches shared one pass (stop 47)
@@ -39,17 +38,13 @@ BASELINE = "95dd56c"  # main before the folds' ripple searches shared one pass (
 
 def worker(spec: dict) -> dict:
     """Time the fits with the primlib importable here; JSON-able results."""
-    import duckdb
-
     import primlib
     from primlib.greybox import fit_greybox
     from primlib.pipeline import Library
     from primlib.pipeline._greywarm import bank_pairs
 
     db = Path(spec["folder"]) / f"run-{time.time_ns()}.duckdb"
-    shutil.copyfile(spec["db"], db)
-    with duckdb.connect(str(db)) as con:
-        con.execute("DELETE FROM fitted_models")
+    without_kept(spec["db"], db)
     out: dict = {"primlib": primlib.__file__, "models": {}}
     with Library(db) as lib:
         machine, bank = lib.machine(spec["machine"]), lib.bank(spec["machine"])

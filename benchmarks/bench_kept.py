@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _revisions import checkout_env
+from _revisions import checkout_env, without_kept
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the stage's helpers: a stage library by its own ILC
@@ -73,14 +73,6 @@ def _match(db: Path, machine: str, path: Path, out: Path) -> float:
     return seconds
 
 
-def _without_kept(src: Path, dst: Path) -> None:
-    import duckdb
-
-    shutil.copyfile(src, dst)
-    with duckdb.connect(str(dst)) as con:
-        con.execute("DELETE FROM fitted_models")
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--db", type=Path, help="a library file (default: build a stage library)")
@@ -107,7 +99,7 @@ def main() -> None:
         fit, read = [], []
         for r in range(args.rounds):
             lib = folder / f"round{r}.duckdb"
-            _without_kept(db, lib)
+            without_kept(db, lib)
             fit.append(_match(lib, machine, path, folder / "fit.csv"))
             read.append(_match(lib, machine, path, folder / "read.csv"))
             same = (folder / "fit.csv").read_bytes() == (folder / "read.csv").read_bytes()
