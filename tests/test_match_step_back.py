@@ -6,6 +6,7 @@ import pytest
 
 from primlib.match import BankIndex, segment_path
 from primlib.match import _step_back as step_back
+from primlib.match._rough import block_roughness, query_roughness
 from primlib.match._segment import _Segmenter
 from primlib.store import Bank
 
@@ -68,6 +69,8 @@ def test_a_noisy_path_nothing_matches_leaves_its_first_start_after_two_searches(
     sigma = 0.05
     pts = _noisy(bank, sigma)
     eps = sigma * np.sqrt(3) / 2  # half the noise's own RMSD: nothing is within it
+    # every piece searched, however noisy (the skip of noisy starts: the test below)
+    monkeypatch.setattr(step_back, "noisy_start", lambda *args: False)
     searched = _searched(monkeypatch)
     segs, info = segment_path(bank, pts, DT, eps)
     first = [s for s in searched if s[0] == 0]
@@ -128,3 +131,82 @@ def test_the_shortest_probe_made_out_of_turn_is_not_searched_again(monkeypatch):
     segs, _ = segment_path(bank, pts, DT, eps)
     assert calls[:2] == [last, floor] and calls.count(floor) == 1
     assert _as_tuples(segs) == _as_tuples(ref)
+
+
+def test_a_noisy_paths_unmatched_stretch_skips_its_noisy_starts(monkeypatch):
+    # the first start's shortest probe and the doubling's starts whose pieces are noisier
+    # than eps: unmatched, unsearched, and the same segmentation as searching them
+    bank = _library()
+    sigma = 0.05
+    pts = _noisy(bank, sigma)
+    eps = sigma * np.sqrt(3) / 4
+    searched = _searched(monkeypatch)
+    segs, info = segment_path(bank, pts, DT, eps)
+    assert info["noisy_starts"] >= 3
+    assert all(s.primitive is None for s in segs)
+    starts = {s[0] for s in searched}
+    assert [s[1] for s in searched if s[0] == 0] == [len(pts) - 1]  # not the shortest
+    monkeypatch.setattr(step_back, "noisy_start", lambda *args: False)
+    searched.clear()
+    ref, ref_info = segment_path(bank, pts, DT, eps)
+    assert _as_tuples(segs) == _as_tuples(ref)
+    assert ref_info["noisy_starts"] == 0
+    # every start but the first skipped whole (the first searched the whole path)
+    assert len({s[0] for s in searched} - starts) == info["noisy_starts"] - 1
+    assert info["queries"] <= ref_info["queries"] - info["noisy_starts"]
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.05])
+def test_a_path_within_eps_of_cubics_at_its_shortest_pieces_never_skips_a_start(sigma):
+    # clean, or noisy at an eps the noise's cubic residual stays below (~0.7x its RMS): the
+    # rule never fires, whatever matches
+    bank = _library()
+    pts = _noisy(bank, sigma) if sigma else bank.points_of(2)[40:261] + 0.0
+    t = np.linspace(0.0, 1.0, pts.shape[0])[:, None]
+    pts = pts + 5.0 * np.sin(2 * np.pi * t * np.array([1.0, 2.0, 3.0]))  # not a stored piece
+    eps = max(sigma, 0.01) * np.sqrt(3) * 2
+    segs, info = segment_path(bank, pts, DT, eps)
+    assert info["noisy_starts"] == 0
+    if sigma == 0.0:
+        assert any(s.primitive is None for s in segs)  # an unmatched stretch was searched
+    else:  # the noise's cubic residual over 8 samples: σ·√(d·(8 − 4)), half of eps·√8
+        blocks = pts[: 27 * 8].reshape(27, 8, 3)
+        rough = np.median(block_roughness(blocks))
+        assert rough == pytest.approx(sigma * np.sqrt(3 * 4), rel=0.3)
+        assert rough < 0.6 * eps * np.sqrt(8)
+
+
+def test_block_roughness_is_each_pieces_query_roughness():
+    rng = np.random.default_rng(4)
+    blocks = rng.normal(size=(7, 8, 3)) * 10.0 + rng.normal(size=(7, 1, 3)) * 100.0
+    got = block_roughness(blocks)
+    want = [query_roughness(b) for b in blocks]
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+    assert block_roughness(blocks[:, :4]).tolist() == [0.0] * 7
+
+
+def test_a_start_is_noisy_only_when_every_prefix_it_could_end_at_is():
+    # a probe of 12 steps whose own piece is rough, with an 8-step prefix on a line: the
+    # failed search's seeds shrunk there could still match, so the start is searched
+    from types import SimpleNamespace
+
+    from primlib.match._options import PathPiece
+
+    rng = np.random.default_rng(8)
+    noise = rng.normal(scale=1.0, size=(400, 3))
+    line = np.linspace(0.0, 1.0, 9)[:, None] * np.array([3.0, 1.0, 2.0])
+
+    def seg(points):
+        return SimpleNamespace(path=PathPiece(points, 4.0), eps=0.2, least=7, noisy={})
+
+    assert step_back.noisy_start(seg(noise), 0, 12)
+    assert step_back.noisy_start(seg(noise), 5, 7)
+    bent = noise.copy()
+    bent[:9] = line
+    assert not step_back.noisy_start(seg(bent), 0, 12)
+    assert step_back.noisy_start(seg(bent), 20, 12)
+    # a path whose pieces are within eps of their cubics by the median: never
+    calm = noise * 0.01
+    calm[:13] = noise[:13]
+    assert not step_back.noisy_start(seg(calm), 0, 12)
+    assert not step_back.noisy_start(seg(noise), 395, 7)  # runs past the path's end

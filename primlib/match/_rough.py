@@ -59,7 +59,8 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from primlib.match._rough_tight import tight_bin
 
-__all__ = ["Roughness", "query_roughness", "rough_bounds", "rough_scales", "K_MAX", "BANK_MAX"]
+__all__ = ["Roughness", "block_roughness", "query_roughness", "rough_bounds", "rough_scales",
+           "K_MAX", "BANK_MAX"]  # fmt: skip
 
 K_MAX = 16  # samples of the longest piece tried
 BANK_MAX = 1 << 17  # stored samples of the largest bank tried
@@ -84,6 +85,18 @@ def query_roughness(q: np.ndarray) -> float:
     res = qc - basis @ (basis.T @ qc)
     scale = float(np.abs(q).max()) if q.size else 0.0
     return max(float(np.linalg.norm(res)) - _U * scale * math.sqrt(q.size), 0.0)
+
+
+def block_roughness(blocks: np.ndarray) -> np.ndarray:
+    """:func:`query_roughness` of m pieces of K samples at once, (m, K, d) → (m,)."""
+    m, k, d = blocks.shape
+    if k <= 4:
+        return np.zeros(m)
+    basis = _basis(k)
+    qc = blocks - blocks.mean(axis=1, keepdims=True)
+    res = qc - np.einsum("kj,mjd->mkd", basis, np.einsum("kj,mkd->mjd", basis, qc))
+    norm = np.sqrt(np.einsum("mkd,mkd->m", res, res))
+    return np.maximum(norm - _U * np.abs(blocks).max(axis=(1, 2)) * math.sqrt(k * d), 0.0)
 
 
 @functools.lru_cache(maxsize=64)

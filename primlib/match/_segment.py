@@ -172,6 +172,8 @@ class _Segmenter:
         # the last failing whole search: (a, b, its seeds, them refined, best first)
         self.failed: tuple[float, float, list[Candidate], list[Candidate]] | None = None
         self.slopes, self.missed = None, False  # _screened's tables; the last start failed
+        self.noisy: dict[int, bool] = {}  # per piece length, the path's noisier than eps
+        self.noisy_starts = 0  # starts left unmatched unsearched as noisy (_step_back)
         self.screen = opts.rotation != "full" and SlopeRanges.rows(bank) <= _SCREEN_BANK
         # the refinements' curves from a table (CurveTable) on banks up to _TABLE_ROWS samples
         # (on 1,000 of 2,000: 180 MB more, a build per curve refined, more time than saved)
@@ -479,6 +481,7 @@ def segment_with(
         "probes": seg.probes,
         "extensions": seg.extensions,
         "rejected": seg.rejected,
+        "noisy_starts": seg.noisy_starts,
         "windows": stats.windows,
         "bounded": stats.bounded,
         "scored": stats.scored,

@@ -14,6 +14,24 @@ although its start does not, the non-monotone case the halving itself only finds
 probe points). Measured, not proven: no cut or primitive changed on the noisy queries
 (matched, unmatched, joined), the novel paths and LASA (``benchmarks/bench_match_noisy.py``,
 ``bench_match_novel.py``, ``bench_match_real.py``), and the match tests.
+
+The starts after it in an unmatched stretch (the doubling's, :meth:`._segment._Segmenter.run`)
+each probe a short piece (the shortest, or as long as the last match), and on such a path most
+of those searches fail too (issue 13: a noisy path nothing matches cost 13x a match on the
+bundled library, 9 of its 10 searches at these starts, and 2,500x on 1,000 primitives). A
+start whose first probe has at most ``K_MAX`` samples, on a path where the median of its
+disjoint pieces of that length lies farther than eps (RMS) from their own least-squares
+cubics, is unmatched without a search when every prefix the probe could end at (its own
+length down to the shortest, where its seeds shrunk would be tried) lies that far from its
+own cubic too (:func:`noisy_start`); so is the first start, before its shortest probe out of
+turn. The proven bound (:mod:`._rough`) rejects such a piece only where every primitive's
+windows are smooth enough, ‖(I − P)q‖ − R_j ≥ eps·√K; this takes R_j as 0: a stored window
+would have to be as rough as the path's noise, and in the same way, to match it. Measured,
+not proven, as above: on the noisy queries (bundled and 1,000 primitives) no cut or primitive
+changed, and paths whose pieces lie within eps of a cubic (clean paths, and noisy ones at an
+eps above ~0.7x the noise's RMS) never take this test. (Testing the probe's own piece alone
+changed one answer on 1,000 primitives: a first start's 11-step piece was that rough, its
+8-step prefix not, and the failed search's seeds shrunk to it matched.)
 """
 
 from __future__ import annotations
@@ -23,12 +41,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from primlib.match._rough import query_roughness
+from primlib.match._rough import K_MAX, block_roughness
 
 if TYPE_CHECKING:
     from primlib.match._segment import _Segmenter
 
-__all__ = ["first_match", "halving_floor"]
+__all__ = ["first_match", "halving_floor", "noisy_start"]
 
 
 def halving_floor(length: int, sig: int, least: int) -> int | None:
@@ -55,6 +73,9 @@ def first_match(seg: _Segmenter, ia: int, sig: int, guess: int) -> tuple[Any, ..
     length = min(max(guess, sig), last - ia)
     if seg._screened(ia, length):
         return None
+    if seg.missed and length < K_MAX and noisy_start(seg, ia, length):
+        seg.noisy_starts += 1
+        return None
     first_start = guess == last  # nothing matched nor declared unmatched before (run)
     early: dict[int, tuple[Any, float]] = {}  # the shortest probe, made out of turn, matched
     hi, r_hi = None, np.inf
@@ -70,6 +91,9 @@ def first_match(seg: _Segmenter, ia: int, sig: int, guess: int) -> tuple[Any, ..
             first_start = False
             floor = halving_floor(length, sig, seg.least)
             if floor is not None and floor < half and _rough(seg, ia, floor, length):
+                if noisy_start(seg, ia, floor):  # as a later start's
+                    seg.noisy_starts += 1
+                    return None
                 f_found, f_r = seg.probe(a, seg._t(ia + floor))
                 if f_found is None:  # the start is unmatched: as the halving ends there
                     shrunk = _shrunk(seg, ia, floor, f_r, max(sig, floor // 2))
@@ -82,6 +106,29 @@ def first_match(seg: _Segmenter, ia: int, sig: int, guess: int) -> tuple[Any, ..
     return found, ia + length, hi, r_hi, {"probe"} if hi is not None else set()
 
 
+def noisy_start(seg: _Segmenter, ia: int, length: int) -> bool:
+    """True when the path's pieces of ``length`` steps lie farther than eps (RMS) from their
+    own least-squares cubics by the median over its disjoint ones (found once a path and
+    length), and every prefix from ia of ``least`` to ``length`` steps does too: none of them
+    is then searched, however the probe from ia would have gone on (module notes)."""
+    k = length + 1
+    if ia + k > seg.path.n:
+        return False
+    if k not in seg.noisy:
+        m = seg.path.n // k
+        seg.noisy[k] = _noisier(seg.path.points[: m * k].reshape(m, k, -1), seg.eps)
+    pts = seg.path.points
+    return seg.noisy[k] and all(
+        _noisier(pts[None, ia : ia + ell + 1], seg.eps) for ell in range(seg.least, length + 1)
+    )
+
+
+def _noisier(pieces: np.ndarray, eps: float) -> bool:
+    """True when the pieces (m, K, d) lie eps (RMS) or farther from their own least-squares
+    cubics, by their median."""
+    return float(np.median(block_roughness(pieces))) >= eps * math.sqrt(pieces.shape[1])
+
+
 def _rough(seg: _Segmenter, ia: int, length: int, span: int) -> bool:
     """True when pieces of ``length`` steps lie farther than eps (RMS) from their own
     least-squares cubics (noise above eps, where such short probes fail), by the median over
@@ -90,8 +137,7 @@ def _rough(seg: _Segmenter, ia: int, length: int, span: int) -> bool:
     of a 60 ms path, and one piece alone is below eps in ~1 of 5 noisy paths."""
     k = length + 1
     m = max(1, min(8, (span + 1) // k))
-    blocks = seg.path.points[ia : ia + m * k].reshape(m, k, -1)
-    return float(np.median([query_roughness(b) for b in blocks])) >= seg.eps * math.sqrt(k)
+    return _noisier(seg.path.points[ia : ia + m * k].reshape(m, k, -1), seg.eps)
 
 
 def _shrunk(seg: _Segmenter, ia: int, length: int, r: float, half: int):
