@@ -41,3 +41,12 @@ def test_queries_below_their_noise_come_out_unmatched_at_about_a_match_s_cost(ca
         assert res[level]["index"]["matched"] < 0.5 and res[level]["grid"]["matched"] < 0.5
         assert res[level]["ratio"] > 0
     assert "| 1 % | index |" in capsys.readouterr().out
+
+
+def test_the_unmatched_table_can_leave_the_grid_out(capsys):
+    bench = _bench()
+    res = bench.unmatched_table(bench.library("bundled"), 2, searches=("index",))
+    for level in bench.NOISE:
+        assert "grid" not in res[level] and res[level]["index"]["matched"] < 0.5
+    out = capsys.readouterr().out
+    assert "| 0.1 % | index |" in out and "| grid |" not in out
