@@ -176,12 +176,16 @@ def test_a_path_within_eps_of_cubics_at_its_shortest_pieces_never_skips_a_start(
         assert rough < 0.6 * eps * np.sqrt(8)
 
 
-def test_block_roughness_is_each_pieces_query_roughness():
+def test_block_roughness_is_each_pieces_distance_from_its_least_squares_cubic():
     rng = np.random.default_rng(4)
     blocks = rng.normal(size=(7, 8, 3)) * 10.0 + rng.normal(size=(7, 1, 3)) * 100.0
     got = block_roughness(blocks)
-    want = [query_roughness(b) for b in blocks]
-    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+    cubic = np.vander(np.arange(8.0), 4)
+    want = [np.linalg.norm(b - cubic @ np.linalg.lstsq(cubic, b, rcond=None)[0]) for b in blocks]
+    # below by the round-off margin, 1e-9 of the largest coordinate per √(K·d) samples
+    margin = 1e-9 * np.abs(blocks).max(axis=(1, 2)) * np.sqrt(8 * 3)
+    np.testing.assert_allclose(got + margin, want, rtol=1e-12)
+    assert [query_roughness(b) for b in blocks] == got.tolist()
     assert block_roughness(blocks[:, :4]).tolist() == [0.0] * 7
 
 

@@ -76,19 +76,13 @@ _SHIFT = 1.01
 
 def query_roughness(q: np.ndarray) -> float:
     """‖(I − P) q‖ of the piece's K samples (K, d), less a margin for round-off (0 for
-    K ≤ 4: every sequence is then a cubic)."""
-    k = q.shape[0]
-    if k <= 4:
-        return 0.0
-    basis = _basis(k)
-    qc = q - q.mean(axis=0)
-    res = qc - basis @ (basis.T @ qc)
-    scale = float(np.abs(q).max()) if q.size else 0.0
-    return max(float(np.linalg.norm(res)) - _U * scale * math.sqrt(q.size), 0.0)
+    K ≤ 4: every sequence is then a cubic): :func:`block_roughness` of the one piece."""
+    return float(block_roughness(q[None])[0])
 
 
 def block_roughness(blocks: np.ndarray) -> np.ndarray:
-    """:func:`query_roughness` of m pieces of K samples at once, (m, K, d) → (m,)."""
+    """‖(I − P) q‖ of each of m pieces of K samples, (m, K, d) → (m,), less a margin for
+    round-off (relative ``_U`` of the piece's largest coordinate; 0 for K ≤ 4)."""
     m, k, d = blocks.shape
     if k <= 4:
         return np.zeros(m)
