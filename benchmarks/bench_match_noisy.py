@@ -310,11 +310,10 @@ def main() -> None:
     kinds = ["bundled", "random-1000"] if args.big else ["bundled"]
     for kind in kinds:
         bank = library(kind)
+        print(f"\n{kind} library ({bank.k} primitives), eps = 2 x noise RMS")
         if args.unmatched_only:
-            print(f"\n{kind} library ({bank.k} primitives), eps = 2 x noise RMS")
             unmatched_table(bank, args.queries, searches=("index",))
             continue
-        print(f"\n{kind} library ({bank.k} primitives), eps = 2 x noise RMS")
         if args.queries:
             single_table(bank, args.queries)
         if args.queries and args.stored_noise:
