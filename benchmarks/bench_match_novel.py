@@ -22,10 +22,16 @@ much.
 
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400]
 [--big [--big-cases CASE ...]] [--long] [--baseline REV | --no-baseline]
-[--cases default "rotation none" ...] [--glyph-chain] [--shrink F]``;
+[--cases default "rotation none" ...] [--glyph-chain] [--shrink F] [--noise F]``;
 ``--glyph-chain`` times the cases on ``data/paths/glyph-chain.csv`` (the restricted
 searches of ``bench_match.py --restricted``) instead, beside the baseline; ``--shrink 1e-6``
 scales the novel paths (and eps) down until they barely move against the primitives.
+
+``--noise F`` adds white noise of σ = F × the path's largest extent on an axis to every sample
+(seeded per path) and times each case twice on the same noisy path: at eps twice the noise's
+RMS (σ√3: the path matches) and at half of it (nothing can match: an unmatched path), then
+prints each path's unmatched time against its matched time (issue 13: "a path that mostly does
+not match must cost about what one that matches does").
 """
 
 from __future__ import annotations
@@ -43,6 +49,8 @@ from _revisions import extract, run_worker
 ROOT = Path(__file__).resolve().parents[1]
 CASES = {"default": {}, "rotation none": {"rotation": "none"}, "time scale 1-1": {
     "time_scale": (1.0, 1.0)}}  # fmt: skip
+# --noise: each case at these multiples of the noise's RMS (labels "CASE, eps ..."), in order
+NOISE_EPS = {"eps 2x noise": 2.0, "eps noise/2": 0.5}
 BASELINE = "3d2aff9"  # main before the lockstep refinement and the up-front rejection
 
 
@@ -87,7 +95,8 @@ def worker(spec: dict) -> dict:
     bank, dt = _library(spec["library"])
     out = {}
     for label in spec["cases"]:
-        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in CASES[label].items()}
+        case, _, at = label.partition(", ")
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in CASES[case].items()}
         times, cpu, segs, frac, probes = [], [], [], [], []
         for seed in spec.get("seeds", range(spec["paths"])):
             n = spec["samples"]
@@ -98,6 +107,8 @@ def worker(spec: dict) -> dict:
                 path = _walk(np.random.default_rng(100 + seed), n, dt, max(8, n // 200))
             pts = path.at(np.linspace(0.0, 1.0, n))
             eps = default_eps(path)
+            if spec.get("noise"):  # white noise; eps a multiple of its RMS (NOISE_EPS)
+                pts, eps = _noisy(pts, spec["noise"], seed, NOISE_EPS[at])
             if spec.get("shrink"):  # a path that barely moves: the same shape, scaled down
                 pts = pts.mean(axis=0) + (pts - pts.mean(axis=0)) * spec["shrink"]
                 eps *= spec["shrink"]
@@ -116,6 +127,16 @@ def worker(spec: dict) -> dict:
         out[label] = {"times": times, "cpu": cpu, "segments": segs, "fraction": frac,
                       "probes": probes}  # fmt: skip
     return out
+
+
+def _noisy(pts, noise: float, seed: int, times: float):
+    """``pts`` with white noise of σ = ``noise`` × its largest extent on an axis (the same
+    draw for every case of a path: seeded by it), and eps ``times`` the noise's RMS σ√d."""
+    import numpy as np
+
+    sigma = noise * float(np.ptp(pts, axis=0).max())
+    rng = np.random.default_rng(200 + seed)
+    return pts + rng.normal(scale=sigma, size=pts.shape), times * sigma * np.sqrt(pts.shape[1])
 
 
 def _min_segment(spec: dict, segment_path, dt: float) -> tuple[dict, float | None]:
@@ -166,6 +187,8 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         what += f" scaled by {spec['shrink']:g}"
     if spec.get("min_segment") is not None:
         what += f", min segment {spec['min_segment']:g} s (shorter matches dropped)"
+    if spec.get("noise"):
+        what += f", white noise σ = {spec['noise']:g} of the extent"
     print(f"\n{spec['library']} library, {samples:,} samples, {what} (first call, seconds)")
     print("| case | median | CPU | worst | segments (median) | matched | baseline median | "
           "baseline CPU | ratio | CPU ratio |")  # fmt: skip
@@ -191,6 +214,24 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
     for label in spec["cases"]:
         print(f"- {label}: {_per_path_cuts(new[label], (old or {}).get(label))}")
     _per_search(spec, new)
+    _unmatched_over_matched(spec, new, old)
+
+
+def _unmatched_over_matched(spec: dict, new: dict, old: dict | None) -> None:
+    """With noise: each case's CPU on a path at eps noise/2 (unmatched) over its CPU on the
+    same path at eps 2x noise (matched), path by path, and their median and worst."""
+    if not spec.get("noise"):
+        return
+    print("\nUnmatched / matched CPU, path by path (median, worst):")
+    for case in dict.fromkeys(label.partition(", ")[0] for label in spec["cases"]):
+        for tree, res in (("this tree", new), ("baseline", old)):
+            if res is None:
+                continue
+            on, off = (res[f"{case}, {at}"]["cpu"] for at in NOISE_EPS)
+            ratio = [u / max(m, 1e-9) for m, u in zip(on, off, strict=True)]
+            cells = ", ".join(f"{x:.2f}x" for x in ratio)
+            print(f"- {case}, {tree}: {cells} (median {statistics.median(ratio):.2f}x, worst "
+                  f"{max(ratio):.2f}x)")  # fmt: skip
 
 
 def _per_search(spec: dict, new: dict) -> None:
@@ -273,6 +314,12 @@ def main() -> None:
         "drops the short matches after, as match_path did), shorter matches dropped",
     )
     ap.add_argument(
+        "--noise",
+        type=float,
+        help="add white noise of this fraction of the extent (e.g. 0.001) and time each case "
+        "at eps 2x and 1/2x the noise's RMS: matched and unmatched",
+    )
+    ap.add_argument(
         "--glyph-chain",
         action="store_true",
         help="instead: data/paths/glyph-chain.csv (glyphs the library holds, rotated), the "
@@ -297,6 +344,11 @@ def main() -> None:
     if args.big:
         specs.append({"library": "random-1000", "samples": args.samples, "paths": args.paths,
                       "cases": args.big_cases})  # fmt: skip
+    if args.noise:
+        for spec in specs:  # each case matched, then unmatched, on the same noisy path
+            spec.update(
+                noise=args.noise, cases=[f"{c}, {e}" for c in spec["cases"] for e in NOISE_EPS]
+            )
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     with tempfile.TemporaryDirectory(prefix="bench_novel_") as tmp:
         old_tree = None if args.no_baseline else extract(args.baseline, tmp)

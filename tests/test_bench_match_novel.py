@@ -46,3 +46,33 @@ def test_per_search_costs_divide_each_path_by_its_whole_searches(bench, capsys):
 def test_per_search_is_left_out_for_a_revision_that_does_not_count_searches(bench, capsys):
     bench._per_search({"cases": ["default"]}, {"default": {"cpu": [1.0]}})
     assert capsys.readouterr().out == ""
+
+
+def test_noisy_paths_add_seeded_noise_and_scale_eps_by_its_rms(bench):
+    """The noise is white with σ the given fraction of the largest extent (sample std within
+    10 %: ~4 standard errors for 3,000 draws), the same draw for a path's every case, and
+    eps is the given multiple of its RMS σ√3."""
+    import numpy as np
+
+    pts = np.column_stack([np.linspace(0.0, 50.0, 1000), np.zeros(1000), np.zeros(1000)])
+    a, eps_a = bench._noisy(pts, 0.001, 0, 2.0)
+    b, eps_b = bench._noisy(pts, 0.001, 0, 0.5)
+    assert np.array_equal(a, b)  # the same path for both tolerances
+    assert np.std(a - pts) == pytest.approx(0.05, rel=0.1)
+    assert eps_a == pytest.approx(2.0 * 0.05 * np.sqrt(3)) and eps_a == pytest.approx(4 * eps_b)
+    assert not np.array_equal(a, bench._noisy(pts, 0.001, 1, 2.0)[0])  # another path, another draw
+
+
+def test_noise_times_each_case_matched_and_unmatched_and_prints_their_ratio(bench, capsys):
+    cases = [f"time scale 1-1, {at}" for at in bench.NOISE_EPS]
+    spec = {"library": "bundled", "samples": 300, "paths": 1, "noise": 0.001, "cases": cases}
+    out = bench.worker(spec)
+    matched, unmatched = (out[c] for c in cases)
+    # at twice the noise the path matches; at half of it much less does (the noise alone
+    # leaves more than eps to any smooth stored piece)
+    assert matched["fraction"][0] > 0.5 > unmatched["fraction"][0]
+    bench._report(spec, out, None)
+    ratio = unmatched["cpu"][0] / matched["cpu"][0]
+    text = capsys.readouterr().out
+    assert "white noise σ = 0.001 of the extent" in text
+    assert f"- time scale 1-1, this tree: {ratio:.2f}x (median {ratio:.2f}x" in text
