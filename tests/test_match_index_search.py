@@ -104,3 +104,35 @@ def test_both_screen_orders_keep_the_same_windows_with_the_same_bounds(novel, ro
     # a range of windows is bounded as those windows of the whole array
     whole = search.first_bound(aq)
     np.testing.assert_array_equal(search.first_bound(aq, (5, 105)), whole[5:105])
+
+
+def test_the_drain_from_sorted_bounds_scores_what_a_selection_per_batch_does(novel, monkeypatch):
+    # short pieces, clean and under noise of ten times eps (nothing matches: the threshold
+    # stays up and the drain visits most windows): the bounds sorted a front at a time give
+    # the seeds and the counts of choosing each batch from all that is left (._drain)
+    from primlib.match import _drain, _index_search
+
+    bank, path = novel
+    rng = np.random.default_rng(3)
+    noisy = PathPiece(path.points + rng.normal(scale=0.5, size=path.points.shape), path.duration)
+    pieces = [(path, 0.2, 0.24), (path, 0.5, 0.53), (noisy, 0.2, 0.22), (noisy, 0.6, 0.63)]
+    fronts = []
+    sorted_drain = _drain.drain_sorted
+
+    def counted(search, aq, gates, pool, windows, size):
+        fronts.append(windows[0].size)
+        return sorted_drain(search, aq, gates, pool, windows, size)
+
+    monkeypatch.setattr(_index_search, "drain_sorted", counted)
+    monkeypatch.setattr(_drain, "FRONT", 2)  # several fronts: their ends join the rest
+
+    def run(sorted_from):
+        monkeypatch.setattr(_index_search, "_SORTED_FROM", sorted_from)
+        search = IndexSearch(bank, SearchOptions(), chunk=256, first_batch=64)
+        seeds = [search.seeds(p, a, b, 0.05) for p, a, b in pieces]
+        return seeds, (search.stats.bounded, search.stats.scored)
+
+    per_batch = run(10**9)
+    assert not fronts
+    assert run(1) == per_batch
+    assert max(fronts) > 2 * 2 * 256  # drained from sorted bounds, over several fronts

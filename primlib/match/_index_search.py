@@ -69,6 +69,7 @@ from primlib.match._bounds import (
     speed_screen,
 )
 from primlib.match._cone import not_in as _not_in
+from primlib.match._drain import drain_sorted
 from primlib.match._ends import offer_overrun, score_points
 from primlib.match._gates import Gates as _Gates
 from primlib.match._grid import GridSearch
@@ -81,6 +82,7 @@ from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, 
 __all__ = ["IndexSearch", "ArcQuery"]
 
 _SHIFTS = np.linspace(-0.5, 0.5, 5)  # sub-step re-scoring of the pool, in base steps
+_SORTED_FROM = 4  # chunks of windows left from which the drain sorts their bounds (._drain)
 
 
 @dataclass
@@ -437,7 +439,10 @@ class IndexSearch:
         Each batch is the smallest of what is left (a partial selection: most windows are
         never scored, and sorting them all cost more than scoring the few); the speed
         bounds are added to every window left as soon as the pool has a threshold (a pool
-        filling late left a million windows ranked by their shape bound alone).
+        filling late left a million windows ranked by their shape bound alone). Once they
+        are, more than ``_SORTED_FROM`` chunks left are drained from their bounds sorted a
+        front at a time (:func:`._drain.drain_sorted`): a drain that the threshold does not
+        stop visits them all, and a selection per batch cost O(n) each.
         """
         size = self.first_batch
         while rest.size:
@@ -450,6 +455,8 @@ class IndexSearch:
                 rest, lbs, lbc = rest[live], lbs[live], lbc[live]
             if rest.size == 0:
                 return
+            if known and rest.size > _SORTED_FROM * self.chunk:  # the bounds sorted once
+                return drain_sorted(self, aq, gates, pool, (rest, lbs, lbc), size)
             if rest.size > size:
                 take = np.argpartition(lbc, size - 1)[:size]
                 take.sort()
