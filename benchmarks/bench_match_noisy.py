@@ -53,6 +53,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from anywher
 import _against_grid  # noqa: E402
 import numpy as np  # noqa: E402
 from _against_grid import compare, joined_cuts, print_joined  # noqa: E402
+from _noise import white_noise  # noqa: E402
 from scipy.interpolate import CubicSpline  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
@@ -122,9 +123,9 @@ def _piece(bank: BankIndex, row: int, rng) -> np.ndarray:
 
 
 def _noisy(clean: np.ndarray, level: float, rng) -> tuple[np.ndarray, float]:
-    sigma = level * float(np.ptp(clean, axis=0).max())
-    noisy = clean + rng.normal(scale=sigma, size=clean.shape)
-    return noisy, 2.0 * sigma * np.sqrt(clean.shape[1])
+    """``clean`` with white noise of σ = ``level`` × its extent, and eps = 2× the noise's RMS."""
+    noisy, rms = white_noise(clean, level, rng)
+    return noisy, 2.0 * rms
 
 
 def single_queries(bank: BankIndex, count: int, level: float, seed: int) -> list[Query]:

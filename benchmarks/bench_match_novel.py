@@ -133,10 +133,10 @@ def _noisy(pts, noise: float, seed: int, times: float):
     """``pts`` with white noise of σ = ``noise`` × its largest extent on an axis (the same
     draw for every case of a path: seeded by it), and eps ``times`` the noise's RMS σ√d."""
     import numpy as np
+    from _noise import white_noise
 
-    sigma = noise * float(np.ptp(pts, axis=0).max())
-    rng = np.random.default_rng(200 + seed)
-    return pts + rng.normal(scale=sigma, size=pts.shape), times * sigma * np.sqrt(pts.shape[1])
+    noisy, rms = white_noise(pts, noise, np.random.default_rng(200 + seed))
+    return noisy, times * rms
 
 
 def _min_segment(spec: dict, segment_path, dt: float) -> tuple[dict, float | None]:
