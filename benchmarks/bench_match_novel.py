@@ -217,6 +217,25 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
     _unmatched_over_matched(spec, new, old)
 
 
+def _scaling(spec: dict, long: tuple, short: tuple) -> None:
+    """With ``--long``: each case's CPU on the paths of 10x the samples over its CPU on the
+    paths of the same seeds at the shorter length (other paths: the walk's control points
+    grow with the samples), path by path, their median and worst; issue 13's goal is x12 or
+    less."""
+    print(f"\nLength x{spec['samples'] / spec['short']:g} ({spec['short']:,} -> "
+          f"{spec['samples']:,} samples), CPU at this length / at the shorter, path by path "
+          "(median, worst; goal x12 or less):")  # fmt: skip
+    for label in spec["cases"]:
+        for tree, res, base in zip(("this tree", "baseline"), long, short, strict=True):
+            if res is None:
+                continue
+            ratio = [x / max(y, 1e-9) for x, y in
+                     zip(res[label]["cpu"], base[label]["cpu"], strict=True)]  # fmt: skip
+            cells = ", ".join(f"x{r:.1f}" for r in ratio)
+            print(f"- {label}, {tree}: {cells} (median x{statistics.median(ratio):.1f}, worst "
+                  f"x{max(ratio):.1f})")  # fmt: skip
+
+
 def _unmatched_over_matched(spec: dict, new: dict, old: dict | None) -> None:
     """With noise: each case's CPU on a path at eps noise/2 (unmatched) over its CPU on the
     same path at eps 2x noise (matched), path by path, and their median and worst."""
@@ -289,7 +308,12 @@ def main() -> None:
         choices=list(CASES),
         help="the cases timed on the 1,000 random primitives (default: default only)",
     )
-    ap.add_argument("--long", action="store_true", help="also 10x the samples (default only)")
+    ap.add_argument(
+        "--long",
+        action="store_true",
+        help="also 10x the samples, on each library timed (the default case only), and the "
+        "time at 10x over the time at the shorter length, path by path",
+    )
     ap.add_argument("--baseline", default=BASELINE)
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument(
@@ -331,9 +355,6 @@ def main() -> None:
         return
     specs = [{"library": "bundled", "samples": args.samples, "paths": args.paths,
               "cases": args.cases}]  # fmt: skip
-    if args.long:
-        specs.append({"library": "bundled", "samples": 10 * args.samples, "paths": args.paths,
-                      "cases": ["default"]})  # fmt: skip
     if args.shrink:
         specs[0]["shrink"] = args.shrink
     if args.glyph_chain:
@@ -344,6 +365,9 @@ def main() -> None:
     if args.big:
         specs.append({"library": "random-1000", "samples": args.samples, "paths": args.paths,
                       "cases": args.big_cases})  # fmt: skip
+    if args.long:  # each library's paths again at 10x the samples, the default case alone
+        specs += [dict(s, samples=10 * s["samples"], cases=["default"], short=s["samples"])
+                  for s in specs if not s.get("file")]  # fmt: skip
     if args.noise:
         for spec in specs:  # each case matched, then unmatched, on the same noisy path
             spec.update(
@@ -352,6 +376,7 @@ def main() -> None:
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     with tempfile.TemporaryDirectory(prefix="bench_novel_") as tmp:
         old_tree = None if args.no_baseline else extract(args.baseline, tmp)
+        done = {}  # (library, samples, min segment) -> this tree's and the baseline's results
         for spec in specs:
             # path by path, this tree then the baseline: a shared machine's load then
             # weighs on both alike
@@ -362,6 +387,10 @@ def main() -> None:
                 if old_tree is not None:
                     _merge(old, run_worker(__file__, json.dumps(one), old_tree))
             _report(spec, new, old)
+            done[spec["library"], spec["samples"], spec.get("min_segment")] = (new, old)
+            if spec.get("short"):
+                _scaling(spec, (new, old), done[spec["library"], spec["short"],
+                                                spec.get("min_segment")])  # fmt: skip
     print(f"\nbaseline: git revision {args.baseline}" if not args.no_baseline else "")
     print(f"load average at end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 

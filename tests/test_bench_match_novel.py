@@ -76,3 +76,45 @@ def test_noise_times_each_case_matched_and_unmatched_and_prints_their_ratio(benc
     text = capsys.readouterr().out
     assert "white noise σ = 0.001 of the extent" in text
     assert f"- time scale 1-1, this tree: {ratio:.2f}x (median {ratio:.2f}x" in text
+
+
+def test_long_paths_print_each_paths_time_over_the_shorter_paths_of_the_same_seed(bench, capsys):
+    """``--long``: CPU at 10x the samples over CPU at the shorter length, seed by seed, for
+    this tree and (when run) the baseline; the median and the worst of them."""
+    spec = {"library": "random-1000", "samples": 24000, "short": 2400, "cases": ["default"]}
+    long = ({"default": {"cpu": [6.0, 9.0, 2.0]}}, None)
+    short = ({"default": {"cpu": [1.0, 1.0, 0.5]}}, None)
+    bench._scaling(spec, long, short)
+    text = capsys.readouterr().out
+    assert "Length x10 (2,400 -> 24,000 samples)" in text
+    assert "- default, this tree: x6.0, x9.0, x4.0 (median x6.0, worst x9.0)" in text
+    assert "baseline" not in text.split("\n", 2)[2]
+    bench._scaling(spec, (long[0], long[0]), (short[0], {"default": {"cpu": [2.0, 3.0, 1.0]}}))
+    assert (
+        "- default, baseline: x3.0, x3.0, x2.0 (median x3.0, worst x3.0)" in capsys.readouterr().out
+    )
+
+
+def test_long_runs_each_library_again_at_ten_times_the_samples(bench, monkeypatch, capsys):
+    """``--long --big``: the bundled library's and the 1,000 primitives' paths again at 10x
+    (the default case alone), each followed by its scaling lines."""
+    runs = []
+
+    def fake_worker(script, spec_json, tree):
+        import json
+
+        spec = json.loads(spec_json)
+        runs.append((spec["library"], spec["samples"], tuple(spec["cases"])))
+        cpu = 0.1 * spec["samples"] / 2400  # ten times longer: ten times the time
+        one = {"times": [0.1], "cpu": [cpu], "segments": [[(1.0, None)]], "fraction": [0.0],
+               "probes": [1]}  # fmt: skip
+        return {c: one for c in spec["cases"]} | {"samples": spec["samples"]}
+
+    monkeypatch.setattr(bench, "run_worker", fake_worker)
+    monkeypatch.setattr("sys.argv", ["bench", "--long", "--big", "--paths", "1", "--no-baseline",
+                                     "--cases", "default"])  # fmt: skip
+    bench.main()
+    one = ("default",)
+    assert runs == [("bundled", 2400, one), ("random-1000", 2400, one), ("bundled", 24000, one),
+                    ("random-1000", 24000, one)]  # fmt: skip
+    assert capsys.readouterr().out.count("(median x10.0, worst x10.0)") == 2
