@@ -129,6 +129,16 @@ def test_cli_min_segment_and_matched_fraction(setup):
     assert "--min-segment: expected a duration >= 0 s, got -0.5" in res.output
 
 
+@pytest.mark.parametrize("low, high", [("2", "1"), ("0", "1"), ("1", "inf"), ("nan", "1")])
+def test_cli_refuses_a_bad_time_scale_range_under_its_option_name(setup, low, high):
+    base = ["--db", str(setup["db"]), "match", str(setup["csv"]), "-m", "xyz"]
+    before = setup["db"].read_bytes()
+    res = CliRunner().invoke(main, [*base, "--time-scale", low, high])
+    assert res.exit_code == 2
+    assert f"--time-scale: expected finite bounds 0 < low <= high, got {low} {high}" in res.output
+    assert setup["db"].read_bytes() == before
+
+
 def _segments(cuts: list[float], matched: list[bool]) -> list[Segment]:
     out = []
     for a, b, m in zip([0.0, *cuts], [*cuts, 1.0], matched, strict=True):

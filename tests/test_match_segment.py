@@ -1,5 +1,6 @@
 """Search and segmentation on synthetic libraries (arrays only, no store)."""
 
+import math
 import time
 
 import numpy as np
@@ -261,8 +262,9 @@ def test_bad_input():
         segment_path(bank, pts[:, :2], DT, 0.1)
     with pytest.raises(InputError, match="rotation: expected one of full, z, none"):
         segment_path(bank, pts, DT, 0.1, rotation="xy")
-    with pytest.raises(InputError, match="time_scale"):
-        segment_path(bank, pts, DT, 0.1, time_scale=(2.0, 1.0))
+    for low, high in ((2.0, 1.0), (0.0, 1.0), (1.0, math.inf), (math.nan, 1.0)):
+        with pytest.raises(InputError, match=r"time_scale: expected finite bounds 0 < low <= high"):
+            segment_path(bank, pts, DT, 0.1, time_scale=(low, high))
     with pytest.raises(InputError, match="finite samples"):
         segment_path(bank, np.full((10, 3), np.nan), DT, 0.1)
     empty = Bank.from_samples([], DT)

@@ -57,7 +57,13 @@ def _table(mt, duration: float) -> str:
     return "\n".join([line(headers), line(["-" * w for w in widths]), *(line(r) for r in rows)])
 
 
-def _check_numbers(eps: float | None, min_segment: float | None) -> None:
+def _check_numbers(
+    eps: float | None, min_segment: float | None, time_scale: tuple[float, float]
+) -> None:
+    """The numbers of ``primlib match``, each refused under its option's name."""
+    lo, hi = time_scale
+    if not (0 < lo <= hi and math.isfinite(hi)):
+        raise InputError(f"--time-scale: expected finite bounds 0 < low <= high, got {lo:g} {hi:g}")
     if eps is not None and not (math.isfinite(eps) and eps > 0):
         raise InputError(f"--eps: expected a tolerance > 0, got {eps:g}")
     if min_segment is not None and not (math.isfinite(min_segment) and min_segment >= 0):
@@ -156,7 +162,7 @@ def match(
     from primlib.match import default_eps
     from primlib.nurbs import read_path
 
-    _check_numbers(eps, min_segment)
+    _check_numbers(eps, min_segment, time_scale)
     inputs = (path_csv, _db(ctx))
     check_output("--plot", plot_file, FIGURE_FORMATS, inputs)
     check_output("--out", out_file, TABLE_FORMATS, inputs)

@@ -138,7 +138,9 @@ def check_options(eps: float, opts: SearchOptions, dim: int) -> None:
         raise InputError(f"rotation: expected one of full, z, none, got {opts.rotation!r}")
     lo, hi = opts.time_scale
     if not (0 < lo <= hi and math.isfinite(hi)):
-        raise InputError(f"time_scale: expected 0 < low <= high, got ({lo!r}, {hi!r})")
+        raise InputError(
+            f"time_scale: expected finite bounds 0 < low <= high, got ({lo!r}, {hi!r})"
+        )
     if opts.rotation == "z" and dim != 3:
         raise InputError(f"rotation: 'z' needs a 3-D machine, got {dim}-D")
 
