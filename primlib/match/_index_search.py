@@ -74,14 +74,13 @@ from primlib.match._ends import offer_overrun, score_points
 from primlib.match._gates import Gates as _Gates
 from primlib.match._grid import GridSearch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
-from primlib.match._pool import CandidatePool, best_and_ties, suppress
+from primlib.match._pool import CandidatePool, reshift
 from primlib.match._rescan import rescan
 from primlib.match._rough import K_MAX, rough_scales
 from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, wiggly
 
 __all__ = ["IndexSearch", "ArcQuery"]
 
-_SHIFTS = np.linspace(-0.5, 0.5, 5)  # sub-step re-scoring of the pool, in base steps
 _SORTED_FROM = 4  # chunks of windows left from which the drain sorts their bounds (._drain)
 
 
@@ -323,7 +322,7 @@ class IndexSearch:
         if pool.keys.size == 0:
             return []
         extra = 0.0 if gates.stored is None else float(gates.deviation(pool.keys).max())
-        seeds = self._reshift(aq, pool, eps + aq.smoothing + extra, gates.need)
+        seeds = reshift(self, aq, pool, eps + aq.smoothing + extra, gates.need)
         # the best few placed on uniform time (:mod:`._rescan`); the rest are near ties
         top = 2 * self.opts.seeds
         return rescan(self.bank, seeds[:top], path, a, b, self.opts) + seeds[top:]
@@ -568,29 +567,6 @@ class IndexSearch:
         ok = (shape < gates) & (r <= pool.combined)
         lv = aq.level
         pool.offer_arrays(r[ok], lv.prim[ws[ok]], lv.x[ws[ok]], x_end[ok], ws[ok])
-
-    def _reshift(self, aq: ArcQuery, pool: CandidatePool, eps: float,
-                 need: float) -> list[Candidate]:  # fmt: skip
-        """Re-score the pool at sub-step shifts of its starts (the window grid puts a stored
-        copy up to half a base step from a window start), keep each window's best; the best
-        ``seeds`` and every window within √2·(3·eps + Δ_b/8) of the best are the seeds."""
-        base = pool.keys.astype(float)
-        r, x0 = self.score_shifted(aq, (base[:, None] + _SHIFTS).ravel(), need)
-        r, x0 = r.reshape(base.size, -1), x0.reshape(base.size, -1)
-        best = np.argmin(r, axis=1)
-        g0 = aq.level.garc[pool.keys] + _SHIFTS[best] * aq.level.step
-        x_end = aq.index.arc_to_sample(g0 + aq.ell, aq.level.prim[pool.keys])
-        rows = np.arange(base.size)
-        rb, xb = r[rows, best], x0[rows, best]
-        live = np.flatnonzero(np.isfinite(rb)).tolist()  # one array op each, not per item
-        rb, xb, xe = rb.tolist(), xb.tolist(), x_end.tolist()
-        items = pool.items
-        kept = suppress([Candidate(items[i].prim, xb[i], xe[i], rb[i]) for i in live],
-                        self.pool_cap)  # fmt: skip
-        # a stored copy now starts within an eighth of a base step of a shift: it scores
-        # below √2·(3·eps + Δ_b/8); every window within that of the best may be it
-        width = math.sqrt(2.0) * (3.0 * eps + 0.125 * aq.level.step)
-        return best_and_ties(kept, self.opts.seeds, width)
 
 
 def _blocks(n: int, size: int = 1 << 16):

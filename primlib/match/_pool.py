@@ -14,12 +14,19 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from primlib.match._options import Candidate
 
-__all__ = ["suppress", "CandidatePool", "best_and_ties"]
+if TYPE_CHECKING:
+    from primlib.match._arc_index import ArcQuery
+    from primlib.match._index_search import IndexSearch
+
+__all__ = ["suppress", "CandidatePool", "best_and_ties", "reshift"]
+
+_SHIFTS = np.linspace(-0.5, 0.5, 5)  # sub-step re-scoring of the pool (reshift), in base steps
 
 
 def _suppressed_order(prim, x0, x1, order, m: int) -> list[int]:
@@ -246,3 +253,28 @@ class CandidatePool:
             self._decided = min(self._decided, live)
             self._greedy = [i for i in self._greedy if i < live]
         self._cols = cols
+
+
+def reshift(search: IndexSearch, aq: ArcQuery, pool: CandidatePool, eps: float,
+            need: float) -> list[Candidate]:  # fmt: skip
+    """The index search's seeds from its pool (:class:`._index_search.IndexSearch`): the
+    pool re-scored at sub-step shifts of its starts (the window grid puts a stored copy up
+    to half a base step from a window start), each window's best kept; the best ``seeds``
+    and every window within √2·(3·eps + Δ_b/8) of the best are the seeds."""
+    base = pool.keys.astype(float)
+    r, x0 = search.score_shifted(aq, (base[:, None] + _SHIFTS).ravel(), need)
+    r, x0 = r.reshape(base.size, -1), x0.reshape(base.size, -1)
+    best = np.argmin(r, axis=1)
+    g0 = aq.level.garc[pool.keys] + _SHIFTS[best] * aq.level.step
+    x_end = aq.index.arc_to_sample(g0 + aq.ell, aq.level.prim[pool.keys])
+    rows = np.arange(base.size)
+    rb, xb = r[rows, best], x0[rows, best]
+    live = np.flatnonzero(np.isfinite(rb)).tolist()  # one array op each, not per item
+    rb, xb, xe = rb.tolist(), xb.tolist(), x_end.tolist()
+    items = pool.items
+    kept = suppress([Candidate(items[i].prim, xb[i], xe[i], rb[i]) for i in live],
+                    search.pool_cap)  # fmt: skip
+    # a stored copy now starts within an eighth of a base step of a shift: it scores
+    # below √2·(3·eps + Δ_b/8); every window within that of the best may be it
+    width = math.sqrt(2.0) * (3.0 * eps + 0.125 * aq.level.step)
+    return best_and_ties(kept, search.opts.seeds, width)
