@@ -41,9 +41,14 @@ deviation. On paths and primitives with no noise to speak of δ = 0 and nothing 
 The gate is a heuristic, not a theorem: a copy within ε in uniform time can have a longer arc
 than ε allows for when the path wiggles fast; the smoothing takes out wiggles the noise
 estimate sees (tests/test_match_heuristics.py: periods of 2.5-4 samples at RMS 0.6-0.7ε),
-not slower ones of the same size. The exhaustive references (every window scored; the
-time-uniform grid) live in ``benchmarks/_reference_search.py`` and the tests compare them
-with this search; ``benchmarks/bench_match_noisy.py`` on noisy queries.
+not slower ones of the same size. Nor does it hold where the piece's arc is short against eps
+(< ``LOOSE_ARC`` eps): a match within eps can then run over a stored arc a third
+shorter (real drawings, stored at rest while the piece moves 4 eps). There, on banks of up to
+``GRID_BANK`` samples and pieces of more than ``K_MAX`` samples, the time-uniform grid's seeds
+are added to the index's (measured: LASA, ``bench_match_real.py``). The exhaustive references
+(every window scored; the time-uniform grid) live in ``benchmarks/_reference_search.py``
+and the tests compare them with this search; ``benchmarks/bench_match_noisy.py`` on noisy
+queries.
 """
 
 from __future__ import annotations
@@ -81,6 +86,8 @@ from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, 
 
 __all__ = ["IndexSearch", "ArcQuery"]
 
+LOOSE_ARC = 30.0  # arc / eps below which a piece takes the grid's seeds too (notes)
+GRID_BANK = 1 << 15  # bank samples up to which it does
 _SORTED_FROM = 4  # chunks of windows left from which the drain sorts their bounds (._drain)
 
 
@@ -314,6 +321,16 @@ class IndexSearch:
         if aq is None:
             # a (nearly) stationary or very short piece: arc length cannot place it
             return self._grid.seeds(path, a, b, eps)
+        if self._loose(aq, path, a, b, eps):
+            # on a small bank, a piece whose arc is short against eps: the index's seeds
+            # (lower RMSDs than the grid's lattice finds, often) and the grid's (a match
+            # whose stored arc is far from the piece's, which no window of its length finds)
+            return self._indexed(aq, path, a, b, eps) + self._grid.seeds(path, a, b, eps)
+        return self._indexed(aq, path, a, b, eps)
+
+    def _indexed(self, aq: ArcQuery, path: PathPiece, a: float, b: float,
+                 eps: float) -> list[Candidate]:  # fmt: skip
+        """:meth:`seeds` from the index."""
         if aq.n_windows <= 0:
             return []
         self.stats.queries += 1
@@ -326,6 +343,12 @@ class IndexSearch:
         # the best few placed on uniform time (:mod:`._rescan`); the rest are near ties
         top = 2 * self.opts.seeds
         return rescan(self.bank, seeds[:top], path, a, b, self.opts) + seeds[top:]
+
+    def _loose(self, aq: ArcQuery, path: PathPiece, a: float, b: float, eps: float) -> bool:
+        """Whether the piece takes the grid's seeds too, though the index can place it."""
+        if self.bank.points.shape[0] > GRID_BANK or aq.ell >= LOOSE_ARC * eps:
+            return False
+        return path.confirm_points(a, b) > K_MAX
 
     def _rough_skip(self, aq: ArcQuery, path: PathPiece, a: float, b: float,
                     eps: float) -> np.ndarray | None:  # fmt: skip
