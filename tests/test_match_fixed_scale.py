@@ -10,8 +10,8 @@ from test_match_index_search import DT, _harmonics
 from primlib.match import BankIndex, kabsch, segment_path
 from primlib.match._grid import GridSearch, _Scale
 from primlib.match._grid_bound import speed_bounds
-from primlib.match._index_search import IndexSearch
-from primlib.match._segment import _GRID_BANK, resolve_options, seeder_for
+from primlib.match._index_search import GRID_BANK, IndexSearch
+from primlib.match._segment import resolve_options, seeder_for
 from primlib.store import Bank
 
 
@@ -24,7 +24,7 @@ def _bank(k: int) -> tuple[BankIndex, list[np.ndarray]]:
 def test_a_fixed_time_scale_searches_the_grid_only_on_a_small_bank(k):
     bank, _ = _bank(k)
     fixed = seeder_for(bank, resolve_options("full", (1.0, 1.0), None))
-    small = bank.points.shape[0] <= _GRID_BANK
+    small = bank.points.shape[0] <= GRID_BANK
     assert small == (k == 20)  # 8,000 and 36,000 samples
     assert isinstance(fixed, GridSearch if small else IndexSearch)
     assert isinstance(seeder_for(bank, resolve_options("full", (0.5, 2.0), None)), IndexSearch)

@@ -87,7 +87,7 @@ from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, 
 __all__ = ["IndexSearch", "ArcQuery"]
 
 LOOSE_ARC = 30.0  # arc / eps below which a piece takes the grid's seeds too (notes)
-GRID_BANK = 1 << 15  # bank samples up to which it does
+GRID_BANK = 1 << 15  # bank samples up to which the grid is cheap: loose pieces, fixed scales
 _SORTED_FROM = 4  # chunks of windows left from which the drain sorts their bounds (._drain)
 
 

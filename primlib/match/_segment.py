@@ -82,7 +82,7 @@ from primlib.match._bank import BankIndex, as_index
 from primlib.match._checks import check_path_samples
 from primlib.match._cuts import _gallop, _split, _unmatched, drop_short
 from primlib.match._grid import GridSearch
-from primlib.match._index_search import IndexSearch
+from primlib.match._index_search import GRID_BANK, IndexSearch
 from primlib.match._interp import CurveTable
 from primlib.match._kabsch import ROTATION_MODES, kabsch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
@@ -103,7 +103,6 @@ __all__ = ["segment_path", "segment_with", "Seeder", "check_options", "resolve_o
 _MIN_SAMPLES = 8  # shortest piece probed, in path samples
 _SCREEN_MAX, _SCREEN_BANK = 32, 1 << 16  # screened: first guesses, banks up to (table rows)
 _TABLE_ROWS = 1 << 17  # samples of a bank whose curves the refinements tabulate (CurveTable)
-_GRID_BANK = 1 << 15  # bank samples up to which a fixed time scale uses the grid (seeder_for)
 
 
 class Seeder(Protocol):
@@ -576,10 +575,10 @@ def segment_path(
 
 
 def seeder_for(index: BankIndex, opts: SearchOptions) -> Seeder:
-    """The arc-length index, or at a fixed time scale on a bank of up to ``_GRID_BANK`` samples
+    """The arc-length index, or at a fixed time scale on a bank of up to ``GRID_BANK`` samples
     the exhaustive grid at that scale (1-1, novel paths, CPU s, index / grid: 7,834 samples 1.5-2
     / 1.0-1.2; 25, 100, 1,000 primitives 3.4-4 / 3.8-5.2, 5.4-6.3 / 10-12, 3.4-4.9 / 44-60)."""
     lo, hi = opts.time_scale
-    if lo == hi and index.points.shape[0] <= _GRID_BANK:
+    if lo == hi and index.points.shape[0] <= GRID_BANK:
         return GridSearch(index, opts)
     return IndexSearch(index, opts)
