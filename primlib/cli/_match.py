@@ -61,9 +61,9 @@ def _check_numbers(
     eps: float | None, min_segment: float | None, time_scale: tuple[float, float]
 ) -> None:
     """The numbers of ``primlib match``, each refused under its option's name."""
-    lo, hi = time_scale
-    if not (0 < lo <= hi and math.isfinite(hi)):
-        raise InputError(f"--time-scale: expected finite bounds 0 < low <= high, got {lo:g} {hi:g}")
+    from primlib.match._segment import check_time_scale
+
+    check_time_scale(time_scale, "--time-scale")
     if eps is not None and not (math.isfinite(eps) and eps > 0):
         raise InputError(f"--eps: expected a tolerance > 0, got {eps:g}")
     if min_segment is not None and not (math.isfinite(min_segment) and min_segment >= 0):

@@ -97,8 +97,8 @@ from primlib.match._types import Segment
 if TYPE_CHECKING:
     from primlib.store import Bank
 
-__all__ = ["segment_path", "segment_with", "Seeder", "check_options", "resolve_options",
-           "drop_short"]  # fmt: skip
+__all__ = ["segment_path", "segment_with", "Seeder", "check_options", "check_time_scale",
+           "resolve_options", "drop_short"]  # fmt: skip
 
 _MIN_SAMPLES = 8  # shortest piece probed, in path samples
 _SCREEN_MAX, _SCREEN_BANK = 32, 1 << 16  # screened: first guesses, banks up to (table rows)
@@ -129,17 +129,21 @@ def resolve_options(
     return replace(base, rotation=rotation, time_scale=(float(ts[0]), float(ts[1])))
 
 
+def check_time_scale(time_scale: tuple[float, float], name: str = "time_scale") -> None:
+    """Raise :class:`InputError`, under ``name`` (the CLI's option), for a time-scale range
+    that is not finite 0 < low <= high."""
+    lo, hi = time_scale
+    if not (0 < lo <= hi and math.isfinite(hi)):
+        raise InputError(f"{name}: expected finite bounds 0 < low <= high, got {lo:g} {hi:g}")
+
+
 def check_options(eps: float, opts: SearchOptions, dim: int) -> None:
     """Raise :class:`InputError` for a bad tolerance, rotation family or time-scale range."""
     if not (isinstance(eps, int | float) and math.isfinite(eps) and eps > 0):
         raise InputError(f"eps: expected a tolerance > 0, got {eps!r}")
     if opts.rotation not in ROTATION_MODES:
         raise InputError(f"rotation: expected one of full, z, none, got {opts.rotation!r}")
-    lo, hi = opts.time_scale
-    if not (0 < lo <= hi and math.isfinite(hi)):
-        raise InputError(
-            f"time_scale: expected finite bounds 0 < low <= high, got ({lo!r}, {hi!r})"
-        )
+    check_time_scale(opts.time_scale)
     if opts.rotation == "z" and dim != 3:
         raise InputError(f"rotation: 'z' needs a 3-D machine, got {dim}-D")
 
