@@ -229,11 +229,8 @@ def _scaling(spec: dict, long: tuple, short: tuple) -> None:
         for tree, res, base in zip(("this tree", "baseline"), long, short, strict=True):
             if res is None:
                 continue
-            ratio = [x / max(y, 1e-9) for x, y in
-                     zip(res[label]["cpu"], base[label]["cpu"], strict=True)]  # fmt: skip
-            cells = ", ".join(f"x{r:.1f}" for r in ratio)
-            print(f"- {label}, {tree}: {cells} (median x{statistics.median(ratio):.1f}, worst "
-                  f"x{max(ratio):.1f})")  # fmt: skip
+            cells = _ratios(res[label]["cpu"], base[label]["cpu"], "x{:.1f}")
+            print(f"- {label}, {tree}: {cells}")
 
 
 def _unmatched_over_matched(spec: dict, new: dict, old: dict | None) -> None:
@@ -247,10 +244,15 @@ def _unmatched_over_matched(spec: dict, new: dict, old: dict | None) -> None:
             if res is None:
                 continue
             on, off = (res[f"{case}, {at}"]["cpu"] for at in NOISE_EPS)
-            ratio = [u / max(m, 1e-9) for m, u in zip(on, off, strict=True)]
-            cells = ", ".join(f"{x:.2f}x" for x in ratio)
-            print(f"- {case}, {tree}: {cells} (median {statistics.median(ratio):.2f}x, worst "
-                  f"{max(ratio):.2f}x)")  # fmt: skip
+            print(f"- {case}, {tree}: {_ratios(off, on, '{:.2f}x')}")
+
+
+def _ratios(top: list[float], bottom: list[float], fmt: str) -> str:
+    """Path by path ``top`` / ``bottom`` formatted by ``fmt``, then their median and worst
+    (the largest) in brackets."""
+    ratio = [t / max(b, 1e-9) for t, b in zip(top, bottom, strict=True)]
+    med, worst = fmt.format(statistics.median(ratio)), fmt.format(max(ratio))
+    return f"{', '.join(fmt.format(r) for r in ratio)} (median {med}, worst {worst})"
 
 
 def _per_search(spec: dict, new: dict) -> None:
