@@ -61,7 +61,7 @@ def _check_numbers(
     eps: float | None, min_segment: float | None, time_scale: tuple[float, float]
 ) -> None:
     """The numbers of ``primlib match``, each refused under its option's name."""
-    from primlib.match._segment import check_time_scale
+    from primlib.match import check_time_scale
 
     check_time_scale(time_scale, "--time-scale")
     if eps is not None and not (math.isfinite(eps) and eps > 0):

@@ -21,7 +21,7 @@ from primlib.match._checks import check_path_samples
 from primlib.match._kabsch import KabschResult, kabsch, rmsd_from_moments
 from primlib.match._match_path import DEFAULT_EPS, default_eps, match_path, matched_pieces
 from primlib.match._options import SearchOptions
-from primlib.match._segment import segment_path
+from primlib.match._segment import check_time_scale, segment_path
 from primlib.match._types import Match, Segment
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "default_eps",
     "matched_pieces",
     "check_path_samples",
+    "check_time_scale",
     "SearchOptions",
     "BankIndex",
 ]

@@ -130,8 +130,8 @@ def resolve_options(
 
 
 def check_time_scale(time_scale: tuple[float, float], name: str = "time_scale") -> None:
-    """Raise :class:`InputError`, under ``name`` (the CLI's option), for a time-scale range
-    that is not finite 0 < low <= high."""
+    """Refuse a time-scale range that is not finite 0 < low <= high (an :class:`InputError`
+    under ``name``: the argument's, or the CLI's option)."""
     lo, hi = time_scale
     if not (0 < lo <= hi and math.isfinite(hi)):
         raise InputError(f"{name}: expected finite bounds 0 < low <= high, got {lo:g} {hi:g}")
