@@ -14,6 +14,7 @@ from primlib.match._grid import GridSearch
 from primlib.match._index_search import GRID_BANK, LOOSE_ARC, IndexSearch
 from primlib.match._options import PathPiece
 from primlib.match._rough import K_MAX
+from primlib.match._segment import _Segmenter
 from primlib.store import Bank
 
 DT = 0.005
@@ -93,3 +94,54 @@ def test_a_real_match_over_a_third_less_stored_arc_is_found_as_the_grid_finds_it
     n = q.points.shape[0] - 1
     cuts = [(round(s.start * n), round(s.end * n), s.primitive) for s in segs]
     assert (747, 1221, 5) in cuts
+
+
+class _Counted(GridSearch):
+    """The grid, counting the pieces it is asked for."""
+
+    calls = 0
+
+    def seeds(self, path, a, b, eps):
+        self.calls += 1
+        return super().seeds(path, a, b, eps)
+
+
+def _probed(bank: BankIndex, path: PathPiece, eps: float):
+    """A segmentation's whole search of the piece [0, 1] through the index, whose grid counts
+    its calls: the match (or None), the segmenter and the index."""
+    opts = SearchOptions()
+    search = IndexSearch(bank, opts)
+    search._grid = _Counted(bank, opts, search.stats)
+    seg = _Segmenter(search, bank, path, eps, opts)
+    found, _ = seg.probe(0.0, 1.0)
+    return found, seg, search
+
+
+def test_a_loose_piece_the_indexs_seeds_match_does_not_ask_the_grid():
+    """The grid's seeds of a loose piece are tried only when the index's give no match: a
+    stored copy matches from the index's, and the grid is never run."""
+    bank = _bank(800)
+    path, ell = _piece(bank, 60)
+    eps = ell / (0.8 * LOOSE_ARC)
+    found, _, search = _probed(bank, path, eps)
+    assert found is not None and found.rmsd < eps and found.cand.prim == 1
+    assert search._grid.calls == 0
+
+
+def test_a_loose_piece_nothing_matches_tries_both_seed_sets():
+    """A loose piece that no seed brings within eps (a stored piece bent by a full period
+    of a sine 3 eps high, across its chord): the failing search has tried the index's seeds
+    and the grid's (the union ``seeds`` gives), kept for the shrunk retries."""
+    bank = _bank(800)
+    path, ell = _piece(bank, 60)
+    eps = ell / (0.5 * LOOSE_ARC)
+    chord = path.points[-1] - path.points[0]
+    across = np.array([-chord[1], chord[0]]) / np.linalg.norm(chord)
+    bend = 3 * eps * np.sin(np.linspace(0.0, 2 * np.pi, 60))[:, None] * across
+    noisy = PathPiece(path.points + bend, path.duration)
+    found, seg, search = _probed(bank, noisy, eps)
+    assert found is None and search._grid.calls == 1
+    a, b, seeds, refined = seg.failed
+    fresh = IndexSearch(bank, SearchOptions())
+    assert (a, b) == (0.0, 1.0) and seeds == fresh.seeds(noisy, 0.0, 1.0, eps)
+    assert len(refined) == len(seeds)

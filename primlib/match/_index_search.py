@@ -45,10 +45,10 @@ not slower ones of the same size. Nor does it hold where the piece's arc is shor
 (< ``LOOSE_ARC`` eps): a match within eps can then run over a stored arc a third
 shorter (real drawings, stored at rest while the piece moves 4 eps). There, on banks of up to
 ``GRID_BANK`` samples and pieces of more than ``K_MAX`` samples, the time-uniform grid's seeds
-are added to the index's (measured: LASA, ``bench_match_real.py``). The exhaustive references
-(every window scored; the time-uniform grid) live in ``benchmarks/_reference_search.py``
-and the tests compare them with this search; ``benchmarks/bench_match_noisy.py`` on noisy
-queries.
+are added to the index's, tried when none of the index's matches (measured: LASA,
+``bench_match_real.py``). The exhaustive references (every window scored; the time-uniform
+grid) live in ``benchmarks/_reference_search.py`` and the tests compare them with this search;
+``benchmarks/bench_match_noisy.py`` on noisy queries.
 """
 
 from __future__ import annotations
@@ -114,9 +114,9 @@ class IndexSearch:
     def __post_init__(self) -> None:
         self._grid = GridSearch(self.bank, self.opts, self.stats)
         self._smoothed: list = [None, None, None, None]
-        # the last query asked and its seeds: a segmentation asks for the same piece again
-        # when its probe matched at once and the segment's best match is then chosen
-        self._last: tuple | None = None
+        # the last query, its first seeds, whether loose, its more seeds (None: not asked):
+        # a segmentation asks again for the piece whose probe matched at once (``best``)
+        self._last: list | None = None
 
     def smoothed(self, path: PathPiece, eps: float, wide: bool = False) -> Smoothed:
         """The path as the index sees it (:mod:`._smooth`), kept for the path and eps of
@@ -299,34 +299,36 @@ class IndexSearch:
 
     def seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
         """Best distinct arc-window candidates below the gate 3·(eps + δ) + Δ/2, best first
-        (δ: the smoothing's deviation, module notes).
+        (δ: the smoothing's deviation, module notes), then :meth:`more_seeds`.
 
         A stored copy of the query starts within Δ/2 of arc length of some window start,
         which moves each arc sample by at most Δ/2 in space and in ℓ·τ: its window scores
         below √2·Δ/2 plus the copy's own deviation (a few eps at most for a match within
         eps).
-
-        The same query twice in a row (path object, a, b, eps) is answered from the first.
         """
+        return self.first_seeds(path, a, b, eps) + self.more_seeds(path, a, b, eps)
+
+    def first_seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        """The index's seeds (the grid's for a piece it cannot place); the same query twice
+        in a row (path object, a, b, eps) from the first."""
         last = self._last
-        if last is not None and last[0] is path and last[1:4] == (a, b, eps):
+        if last is not None and last[0] is path and last[1:4] == [a, b, eps]:
             return list(last[4])
-        out = self._seeds(path, a, b, eps)
-        self._last = (path, a, b, eps, tuple(out))
+        aq = self.arc_query(path, a, b, eps)  # None: (nearly) stationary or very short
+        if aq is None:
+            out, loose = self._grid.seeds(path, a, b, eps), False
+        else:
+            out, loose = self._indexed(aq, path, a, b, eps), self._loose(aq, path, a, b, eps)
+        self._last = [path, a, b, eps, tuple(out), loose, None]
         return out
 
-    def _seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
-        """:meth:`seeds`, searched."""
-        aq = self.arc_query(path, a, b, eps)
-        if aq is None:
-            # a (nearly) stationary or very short piece: arc length cannot place it
-            return self._grid.seeds(path, a, b, eps)
-        if self._loose(aq, path, a, b, eps):
-            # on a small bank, a piece whose arc is short against eps: the index's seeds
-            # (lower RMSDs than the grid's lattice finds, often) and the grid's (a match
-            # whose stored arc is far from the piece's, which no window of its length finds)
-            return self._indexed(aq, path, a, b, eps) + self._grid.seeds(path, a, b, eps)
-        return self._indexed(aq, path, a, b, eps)
+    def more_seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
+        """Seeds to try where :meth:`first_seeds` gave no match: the grid's of a loose piece
+        (module notes; the index's often have lower RMSDs than the grid's lattice finds)."""
+        self.first_seeds(path, a, b, eps)  # the same query: from its memo
+        if (last := self._last)[6] is None:
+            last[6] = tuple(self._grid.seeds(path, a, b, eps)) if last[5] else ()
+        return list(last[6])
 
     def _indexed(self, aq: ArcQuery, path: PathPiece, a: float, b: float,
                  eps: float) -> list[Candidate]:  # fmt: skip

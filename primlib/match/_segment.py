@@ -207,9 +207,8 @@ class _Segmenter:
     def probe(self, a: float, b: float) -> tuple[_Found | None, float]:
         """Step 2 of the paper: is there a stored piece within eps of the path piece [a, b]?
 
-        The whole search: an up-front rejection (:mod:`._reject`), then the seeds. Returns
-        the match (or None) and the lowest RMSD a seed reached (inf if none was tried).
-        """
+        The whole search: an up-front rejection (:mod:`._reject`), then the seeds (:meth:`_staged`).
+        Returns the match (or None) and the lowest RMSD a seed reached (inf if none tried)."""
         self.probes += 1
         if (b - a) * (self.path.n - 1) < self.least - 1e-9:
             return None, np.inf
@@ -234,11 +233,24 @@ class _Segmenter:
         ):  # fmt: skip
             self.rejected += 1  # no primitive can be within eps: the exact check would say so
             return None, np.inf
-        seeds = self.seeder.seeds(self.path, a, b, self.eps)
-        found, refined, r = self._try(a, b, seeds, kc, q)  # q: the samples rejects had
+        found, seeds, refined, r = self._staged(a, b, kc, q)
         if found is None:
             self.failed = (a, b, seeds, [refined[i] for i in np.argsort(r, kind="stable")])
         return found, float(r.min(initial=np.inf))
+
+    def _staged(self, a: float, b: float, kc: int, q: np.ndarray):
+        """:meth:`_try` on the seeds for [a, b], then on the seeder's ``more_seeds`` if those
+        give no match (the grid's of a loose piece, :mod:`._index_search`): the match or
+        None, every seed tried, them refined and their RMSDs."""
+        sd, piece = self.seeder, (self.path, a, b, self.eps)
+        staged = hasattr(sd, "more_seeds")
+        seeds = sd.first_seeds(*piece) if staged else sd.seeds(*piece)
+        found, refined, r = self._try(a, b, seeds, kc, q)  # q: the samples rejects had
+        more = sd.more_seeds(*piece) if staged and found is None else []
+        if more:
+            found, refined_more, r_more = self._try(a, b, more, kc, q)
+            seeds, refined, r = seeds + more, refined + refined_more, np.concatenate([r, r_more])
+        return found, seeds, refined, r
 
     def _stretched(self, a: float, b_old: float, b: float, cands: list[Candidate]):
         """Candidates for [a, b_old] stretched to [a, b] at their time scales, tried."""
