@@ -160,10 +160,14 @@ def _hf(u):
 
 @pytest.mark.xfail(
     reason="known limit, not the junction chatter of issue 12 (fixed: test_splice_inverse): "
-    "on a machine that is not its model, the model-based time scale rings near Nyquist over "
-    "the path's first samples. The stored inputs' own start kick hid it until fits held the "
-    "ends at rest: their near-Nyquist content fell from 0.91 to 0.15, the warm start's stays "
-    "at 1.6. Strict, so a fix shows up as a failure to remove this mark.",
+    "the library records no stored signal's worth here, so both segments take the model-only "
+    "input, the grey-box model's exact inverse, which rings near Nyquist after the path's "
+    "curvature jumps (the join at sample 250, the wave's turn near 390): 0.224 where the "
+    "stored inputs have 0.173. Band-limited as the splice's inverses are (band_limit) it is "
+    "0.108 at the same error on the machine (1.2038e-3 mm), but the model-only input then "
+    "loses its sample-exact tracking on the model (bench_realism's linear library, rotated "
+    "paths 2.5e-8 -> 6.2e-7 mm, their near-Nyquist content 30 % lower; stop 51), so it is "
+    "not done. Strict, so a fix shows up as a failure to remove this mark.",
     strict=True,
 )
 def test_warm_start_adds_no_chatter_beyond_the_stored_inputs(xyz):
