@@ -138,10 +138,10 @@ def test_a_loose_piece_nothing_matches_tries_both_seed_sets():
     chord = path.points[-1] - path.points[0]
     across = np.array([-chord[1], chord[0]]) / np.linalg.norm(chord)
     bend = 3 * eps * np.sin(np.linspace(0.0, 2 * np.pi, 60))[:, None] * across
-    noisy = PathPiece(path.points + bend, path.duration)
-    found, seg, search = _probed(bank, noisy, eps)
+    bent = PathPiece(path.points + bend, path.duration)
+    found, seg, search = _probed(bank, bent, eps)
     assert found is None and search._grid.calls == 1
     a, b, seeds, refined = seg.failed
     fresh = IndexSearch(bank, SearchOptions())
-    assert (a, b) == (0.0, 1.0) and seeds == fresh.seeds(noisy, 0.0, 1.0, eps)
+    assert (a, b) == (0.0, 1.0) and seeds == fresh.seeds(bent, 0.0, 1.0, eps)
     assert len(refined) == len(seeds)
