@@ -17,11 +17,11 @@ time scales), ``_refine`` (Gauss–Newton), ``_segment`` (binary search), ``_ban
 """
 
 from primlib.match._bank import BankIndex
-from primlib.match._checks import check_path_samples
+from primlib.match._checks import check_path_samples, check_time_scale
 from primlib.match._kabsch import KabschResult, kabsch, rmsd_from_moments
 from primlib.match._match_path import DEFAULT_EPS, default_eps, match_path, matched_pieces
 from primlib.match._options import SearchOptions
-from primlib.match._segment import check_time_scale, segment_path
+from primlib.match._segment import segment_path
 from primlib.match._types import Match, Segment
 
 __all__ = [

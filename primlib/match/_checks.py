@@ -1,13 +1,15 @@
-"""Checks of a path's samples shared by every entry point of the matcher."""
+"""Checks shared by every entry point of the matcher: a path's samples, a time-scale range."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from primlib._errors import InputError
 from primlib.defaults import MAX_ABS_VALUE, MIN_EXTENT_REL
 
-__all__ = ["check_path_samples"]
+__all__ = ["check_path_samples", "check_time_scale"]
 
 
 def check_path_samples(points: np.ndarray, where: str = "path") -> None:
@@ -51,3 +53,11 @@ def check_path_samples(points: np.ndarray, where: str = "path") -> None:
             f"{extent:.3g}, at most {MIN_EXTENT_REL:g} of its coordinates' size {scale:.3g}), "
             "nothing to match"
         )
+
+
+def check_time_scale(time_scale: tuple[float, float], name: str = "time_scale") -> None:
+    """Refuse a time-scale range that is not finite 0 < low <= high (an :class:`InputError`
+    under ``name``: the argument's, or the CLI's option)."""
+    lo, hi = time_scale
+    if not (0 < lo <= hi and math.isfinite(hi)):
+        raise InputError(f"{name}: expected finite bounds 0 < low <= high, got {lo:g} {hi:g}")

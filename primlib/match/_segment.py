@@ -79,7 +79,7 @@ import numpy as np
 
 from primlib._errors import InputError
 from primlib.match._bank import BankIndex, as_index
-from primlib.match._checks import check_path_samples
+from primlib.match._checks import check_path_samples, check_time_scale
 from primlib.match._cuts import _gallop, _split, _unmatched, drop_short
 from primlib.match._grid import GridSearch
 from primlib.match._index_search import GRID_BANK, IndexSearch
@@ -97,8 +97,8 @@ from primlib.match._types import Segment
 if TYPE_CHECKING:
     from primlib.store import Bank
 
-__all__ = ["segment_path", "segment_with", "Seeder", "check_options", "check_time_scale",
-           "resolve_options", "drop_short"]  # fmt: skip
+__all__ = ["segment_path", "segment_with", "Seeder", "check_options", "resolve_options",
+           "drop_short"]  # fmt: skip
 
 _MIN_SAMPLES = 8  # shortest piece probed, in path samples
 _SCREEN_MAX, _SCREEN_BANK = 32, 1 << 16  # screened: first guesses, banks up to (table rows)
@@ -127,14 +127,6 @@ def resolve_options(
     base = options or SearchOptions()
     ts = base.time_scale if time_scale is None else time_scale
     return replace(base, rotation=rotation, time_scale=(float(ts[0]), float(ts[1])))
-
-
-def check_time_scale(time_scale: tuple[float, float], name: str = "time_scale") -> None:
-    """Refuse a time-scale range that is not finite 0 < low <= high (an :class:`InputError`
-    under ``name``: the argument's, or the CLI's option)."""
-    lo, hi = time_scale
-    if not (0 < lo <= hi and math.isfinite(hi)):
-        raise InputError(f"{name}: expected finite bounds 0 < low <= high, got {lo:g} {hi:g}")
 
 
 def check_options(eps: float, opts: SearchOptions, dim: int) -> None:
