@@ -22,10 +22,17 @@ much.
 
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400]
 [--big [--big-cases CASE ...]] [--long] [--baseline REV | --no-baseline]
-[--cases default "rotation none" ...] [--glyph-chain] [--shrink F] [--noise F]``;
+[--cases default "rotation none" ...] [--glyph-chain] [--as-stored] [--shrink F] [--noise F]``;
 ``--glyph-chain`` times the cases on ``data/paths/glyph-chain.csv`` (the restricted
 searches of ``bench_match.py --restricted``) instead, beside the baseline; ``--shrink 1e-6``
 scales the novel paths (and eps) down until they barely move against the primitives.
+
+``--as-stored`` times paths every restriction holds of instead: 5 stretches of stored
+primitives' own samples, not turned, at time scale 1, each moved to start where the last
+ended (``_as_stored``). The restricted searches then find the default's answer, and the
+report's last lines (``_over_default``) show whether restricting alone costs time: on the
+novel paths a restriction that does not hold cuts the path finer, and each cut costs a
+whole search.
 
 ``--noise F`` adds white noise of σ = F × the path's largest extent on an axis to every sample
 (seeded per path) and times each case twice on the same noisy path: at eps twice the noise's
@@ -84,6 +91,30 @@ def _walk(rng, n: int, dt: float, m: int):
     return Trajectory.from_definition(3, knots, ctrl, None, (n - 1) * dt)
 
 
+def _as_stored(bank, rng, n: int, dt: float, pieces: int = 5):
+    """A path every restriction holds of: ``pieces`` stretches of stored primitives' own
+    samples (about n / pieces each, at random starts; the whole primitive where none is
+    that long), neither turned nor time-scaled, each moved to start where the last ended."""
+    import numpy as np
+
+    from primlib.nurbs import Trajectory
+
+    counts = np.diff(bank.offsets)
+    out, last, left = [], np.zeros(bank.points.shape[1]), n
+    for j in range(pieces):
+        want = left // (pieces - j) + (1 if j else 0)  # the first sample of a piece is shared
+        ok = np.flatnonzero(counts >= want)
+        p = int(rng.choice(ok)) if ok.size else int(np.argmax(counts))
+        m = min(want, int(counts[p]))
+        s0 = int(rng.integers(0, counts[p] - m + 1))
+        pts = bank.points[bank.offsets[p] + s0 : bank.offsets[p] + s0 + m]
+        pts = pts - pts[0] + last
+        last = pts[-1]
+        out.append(pts if not out else pts[1:])
+        left -= m - (1 if j else 0)
+    return Trajectory.from_samples(np.concatenate(out), dt)
+
+
 def worker(spec: dict) -> dict:
     """Time every case of ``spec`` with the primlib importable here; JSON-able results."""
     import numpy as np
@@ -102,6 +133,9 @@ def worker(spec: dict) -> dict:
             n = spec["samples"]
             if spec.get("file"):  # one stored path, timed ``paths`` times
                 path = Trajectory.from_csv(ROOT / spec["file"])
+                n = int(round(path.duration / dt)) + 1
+            elif spec.get("as_stored"):  # stored pieces as stored: the restrictions hold
+                path = _as_stored(bank, np.random.default_rng(300 + seed), n, dt)
                 n = int(round(path.duration / dt)) + 1
             else:
                 path = _walk(np.random.default_rng(100 + seed), n, dt, max(8, n // 200))
@@ -189,6 +223,8 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         what += f", min segment {spec['min_segment']:g} s (shorter matches dropped)"
     if spec.get("noise"):
         what += f", white noise σ = {spec['noise']:g} of the extent"
+    if spec.get("as_stored"):
+        what += ", each of 5 stored pieces as stored (not turned, time scale 1)"
     print(f"\n{spec['library']} library, {samples:,} samples, {what} (first call, seconds)")
     print("| case | median | CPU | worst | segments (median) | matched | baseline median | "
           "baseline CPU | ratio | CPU ratio |")  # fmt: skip
@@ -214,6 +250,7 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
     for label in spec["cases"]:
         print(f"- {label}: {_per_path_cuts(new[label], (old or {}).get(label))}")
     _per_search(spec, new)
+    _over_default(spec, new)
     _unmatched_over_matched(spec, new, old)
 
 
@@ -278,6 +315,22 @@ def _per_search(spec: dict, new: dict) -> None:
             ratios = [d / m for m, d in zip(per[label], per["default"], strict=True)]
             print(f"- {label}, CPU per search against the default's (default / this, >1: "
                   f"cheaper): {', '.join(f'{x:.2f}x' for x in ratios)}")  # fmt: skip
+
+
+def _over_default(spec: dict, new: dict) -> None:
+    """Each restricted case's CPU over the default's on the same path, path by path, their
+    median and worst (issue 13: "never slower", so 1.00x or less), and the segments of each
+    beside the default's (a restriction that does not hold of the path cuts it finer)."""
+    if "default" not in spec["cases"] or len(spec["cases"]) < 2:
+        return
+    base = new["default"]
+    print("\nRestricted over the default, CPU path by path (median, worst; goal <= 1.00x):")
+    for label in (c for c in spec["cases"] if c != "default"):
+        r = new[label]
+        cuts = ", ".join(f"{len(a)}/{len(b)}" for a, b in zip(r["segments"], base["segments"],
+                                                              strict=True))  # fmt: skip
+        print(f"- {label}: {_ratios(r['cpu'], base['cpu'], '{:.2f}x')}; segments against the "
+              f"default's: {cuts}")  # fmt: skip
 
 
 def _per_path_cuts(r: dict, o: dict | None) -> str:
@@ -346,6 +399,12 @@ def main() -> None:
         "at eps 2x and 1/2x the noise's RMS: matched and unmatched",
     )
     ap.add_argument(
+        "--as-stored",
+        action="store_true",
+        help="instead of novel paths: paths of 5 stored pieces as stored (not turned, time "
+        "scale 1), so that every restriction holds of them (and with --big on 1,000 primitives)",
+    )
+    ap.add_argument(
         "--glyph-chain",
         action="store_true",
         help="instead: data/paths/glyph-chain.csv (glyphs the library holds, rotated), the "
@@ -359,6 +418,8 @@ def main() -> None:
               "cases": args.cases}]  # fmt: skip
     if args.shrink:
         specs[0]["shrink"] = args.shrink
+    if args.as_stored:
+        specs[0]["as_stored"] = True
     if args.glyph_chain:
         specs = [{"library": "bundled", "samples": 0, "paths": args.paths, "cases": args.cases,
                   "file": "data/paths/glyph-chain.csv"}]  # fmt: skip
@@ -366,7 +427,7 @@ def main() -> None:
         specs = [dict(specs[0], min_segment=m) for m in args.min_segment] + specs[1:]
     if args.big:
         specs.append({"library": "random-1000", "samples": args.samples, "paths": args.paths,
-                      "cases": args.big_cases})  # fmt: skip
+                      "cases": args.big_cases, "as_stored": args.as_stored})  # fmt: skip
     if args.long:  # each library's paths again at 10x the samples, the default case alone
         specs += [dict(s, samples=10 * s["samples"], cases=["default"], short=s["samples"])
                   for s in specs if not s.get("file")]  # fmt: skip

@@ -118,3 +118,48 @@ def test_long_runs_each_library_again_at_ten_times_the_samples(bench, monkeypatc
     assert runs == [("bundled", 2400, one), ("random-1000", 2400, one), ("bundled", 24000, one),
                     ("random-1000", 24000, one)]  # fmt: skip
     assert capsys.readouterr().out.count("(median x10.0, worst x10.0)") == 2
+
+
+def test_as_stored_paths_match_whole_in_every_restricted_case(bench):
+    """``--as-stored``: 5 stored stretches, not turned, at time scale 1, joined end to start;
+    every restriction holds of them, so each case matches the whole path in at most 5
+    segments (a stretch may also match across a junction, never worse)."""
+    cases = ["default", "rotation none", "time scale 1-1"]
+    spec = {"library": "bundled", "samples": 600, "paths": 1, "cases": cases, "as_stored": True}
+    out = bench.worker(spec)
+    for case in cases:
+        r = out[case]
+        assert r["fraction"][0] == pytest.approx(1.0)
+        assert 1 <= len(r["segments"][0]) <= 5
+        assert all(p is not None for _, p in r["segments"][0])
+
+
+def test_as_stored_paths_are_the_stored_samples_moved(bench):
+    """Each piece is a stored stretch's own samples translated: every step of the path is a
+    stored step, to the path fit's tolerance (positions within 1e-4 of the path's extent,
+    so steps within twice that), and the path has the samples asked for."""
+    import numpy as np
+
+    bank, dt = bench._library("bundled")
+    stored = np.diff(bank.points, axis=0)
+    for seed in range(3):
+        path = bench._as_stored(bank, np.random.default_rng(seed), 600, dt)
+        n = int(round(path.duration / dt)) + 1
+        assert n == 600
+        pts = path.at(np.linspace(0.0, 1.0, n))
+        steps = np.diff(pts, axis=0)
+        near = np.min(np.linalg.norm(steps[:, None, :] - stored[None, :, :], axis=2), axis=1)
+        assert np.max(near) <= 2e-4 * float(np.ptp(pts, axis=0).max())
+
+
+def test_over_default_divides_each_restricted_path_by_the_default_on_it(bench, capsys):
+    spec = {"cases": ["default", "rotation none"]}
+    two, one = [(0.5, 1), (1.0, 2)], [(1.0, 3)]
+    new = {"default": {"cpu": [1.0, 2.0], "segments": [two, one]},
+           "rotation none": {"cpu": [0.5, 3.0], "segments": [one, two]}}  # fmt: skip
+    bench._over_default(spec, new)
+    text = capsys.readouterr().out
+    assert "- rotation none: 0.50x, 1.50x (median 1.00x, worst 1.50x)" in text
+    assert "segments against the default's: 1/2, 2/1" in text
+    bench._over_default({"cases": ["rotation none"]}, new)  # no default: nothing to divide by
+    assert capsys.readouterr().out == ""
