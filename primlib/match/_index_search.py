@@ -78,7 +78,7 @@ from primlib.match._drain import drain_sorted
 from primlib.match._ends import offer_overrun, score_points
 from primlib.match._gates import Gates as _Gates
 from primlib.match._grid import GridSearch
-from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
+from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats, SeedMemo
 from primlib.match._pool import CandidatePool, reshift
 from primlib.match._rescan import rescan
 from primlib.match._rough import K_MAX, rough_scales
@@ -114,9 +114,9 @@ class IndexSearch:
     def __post_init__(self) -> None:
         self._grid = GridSearch(self.bank, self.opts, self.stats)
         self._smoothed: list = [None, None, None, None]
-        # the last query, its first seeds, whether loose, its more seeds (None: not asked):
-        # a segmentation asks again for the piece whose probe matched at once (``best``)
-        self._last: list | None = None
+        # the last query's seeds: a segmentation asks again for the piece whose probe
+        # matched at once (``best``)
+        self._last: SeedMemo | None = None
 
     def smoothed(self, path: PathPiece, eps: float, wide: bool = False) -> Smoothed:
         """The path as the index sees it (:mod:`._smooth`), kept for the path and eps of
@@ -311,24 +311,24 @@ class IndexSearch:
     def first_seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
         """The index's seeds (the grid's for a piece it cannot place); the same query twice
         in a row (path object, a, b, eps) from the first."""
-        last = self._last
-        if last is not None and last[0] is path and last[1:4] == [a, b, eps]:
-            return list(last[4])
+        if self._last is not None and self._last.holds(path, a, b, eps):
+            return list(self._last.first)
         aq = self.arc_query(path, a, b, eps)  # None: (nearly) stationary or very short
         if aq is None:
             out, loose = self._grid.seeds(path, a, b, eps), False
         else:
             out, loose = self._indexed(aq, path, a, b, eps), self._loose(aq, path, a, b, eps)
-        self._last = [path, a, b, eps, tuple(out), loose, None]
+        self._last = SeedMemo(path, a, b, eps, tuple(out), loose)
         return out
 
     def more_seeds(self, path: PathPiece, a: float, b: float, eps: float) -> list[Candidate]:
         """Seeds to try where :meth:`first_seeds` gave no match: the grid's of a loose piece
         (module notes; the index's often have lower RMSDs than the grid's lattice finds)."""
         self.first_seeds(path, a, b, eps)  # the same query: from its memo
-        if (last := self._last)[6] is None:
-            last[6] = tuple(self._grid.seeds(path, a, b, eps)) if last[5] else ()
-        return list(last[6])
+        last = self._last
+        if last.more is None:
+            last.more = tuple(self._grid.seeds(path, a, b, eps)) if last.loose else ()
+        return list(last.more)
 
     def _indexed(self, aq: ArcQuery, path: PathPiece, a: float, b: float,
                  eps: float) -> list[Candidate]:  # fmt: skip

@@ -9,7 +9,7 @@ import numpy as np
 from primlib.defaults import TIME_SCALE
 from primlib.match._interp import cubic_at
 
-__all__ = ["SearchOptions", "Candidate", "PathPiece", "SearchStats"]
+__all__ = ["SearchOptions", "Candidate", "PathPiece", "SearchStats", "SeedMemo"]
 
 
 @dataclass(frozen=True)
@@ -80,3 +80,22 @@ class SearchStats:
     bounded: int = 0  # candidates past the cheap first bound (index search)
     scored: int = 0  # candidates scored exactly
     queries: int = 0
+
+
+@dataclass
+class SeedMemo:
+    """One whole search's seeds, kept for the same query asked again: the piece [a, b] of
+    ``path`` (the object itself) at ``eps``, the first seeds, whether the piece is loose
+    (the grid's seeds may be asked after them) and those (None until asked)."""
+
+    path: PathPiece
+    a: float
+    b: float
+    eps: float
+    first: tuple[Candidate, ...]
+    loose: bool
+    more: tuple[Candidate, ...] | None = None
+
+    def holds(self, path: PathPiece, a: float, b: float, eps: float) -> bool:
+        """Whether this is the memo of that query."""
+        return self.path is path and (self.a, self.b, self.eps) == (a, b, eps)
