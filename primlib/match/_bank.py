@@ -13,6 +13,7 @@ from primlib.defaults import MAX_ABS_VALUE
 from primlib.match._arc_index import ArcIndex, ArcSamples
 from primlib.match._reject import Envelope
 from primlib.match._rough import BANK_MAX, Roughness
+from primlib.match._rough_diff import DiffRoughness
 
 if TYPE_CHECKING:
     from primlib.store import Bank
@@ -97,7 +98,7 @@ class BankIndex:
         self._vmax: np.ndarray | None = None
         self._steps: np.ndarray | None = None
         self._envelope: Envelope | None = None
-        self._roughness: Roughness | None = None
+        self._roughness: Roughness | DiffRoughness | None = None
         self.index_seconds = 0.0
 
     @property
@@ -218,11 +219,13 @@ class BankIndex:
             self._envelope = Envelope.of(self.points, self.offsets, self.max_step())
         return self._envelope
 
-    def roughness(self) -> Roughness | None:
-        """Per-primitive roughness bounds (:mod:`._rough`), built once; None on a bank of
-        more than ``BANK_MAX`` samples."""
-        if self._roughness is None and self.points.shape[0] <= BANK_MAX:
-            self._roughness = Roughness(self.points, self.offsets)
+    def roughness(self) -> Roughness | DiffRoughness:
+        """Per-primitive roughness bounds, built once: :mod:`._rough`'s table, or on a bank
+        of more than ``BANK_MAX`` samples (where each of its bins reads seconds of windows)
+        :mod:`._rough_diff`'s, from the samples' differences."""
+        if self._roughness is None:
+            big = self.points.shape[0] > BANK_MAX
+            self._roughness = (DiffRoughness if big else Roughness)(self.points, self.offsets)
         return self._roughness
 
     def __repr__(self) -> str:

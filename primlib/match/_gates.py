@@ -9,10 +9,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from primlib.match._rough import K_MAX, rough_scales
+from primlib.match._rough_diff import DiffRoughness, diff_scales
+
 if TYPE_CHECKING:
     from primlib.match._arc_index import ArcQuery
+    from primlib.match._bank import BankIndex
+    from primlib.match._options import PathPiece
 
-__all__ = ["Gates"]
+__all__ = ["Gates", "rough_skip", "scale_ok"]
 
 
 @dataclass(frozen=True)
@@ -29,9 +34,13 @@ class Gates:
     over: np.ndarray  # starts of the windows with ``need`` left, not inside (any < M)
 
     @classmethod
-    def of(cls, aq: ArcQuery, eps: float, skip: np.ndarray | None = None) -> Gates:
+    def of(cls, aq: ArcQuery, eps: float, skip: np.ndarray | None = None,
+           ends: np.ndarray | None = None, offsets: np.ndarray | None = None) -> Gates:  # fmt: skip
         """The gates of query ``aq``; no window of a primitive that ``skip`` (k,) marks
-        (one no window of which can be within eps, :func:`._rough.rough_bounds`) valid."""
+        (one no window of which can be within eps, :func:`._rough.rough_bounds`) valid, and
+        of one that ``ends`` (k,) marks (none of whose inside windows can be,
+        :mod:`._rough_diff`) only those near its first or last sample (:func:`_near_ends`;
+        ``offsets``: the bank's, (k + 1,))."""
         # a stored copy starts within half a base step of some window start, which moves
         # every arc sample by at most that: its window's shape RMSD is below the gate; the
         # copy is within eps + smoothing (+ the stored window's own) of what the index holds
@@ -49,7 +58,8 @@ class Gates:
         if skip is not None:
             inside, extra = np.where(skip, 0, inside), np.where(skip, 0, extra)
         over = np.repeat(lv.start + inside, extra) + _ranks(extra)
-        return cls(gate, stored, lv.first_of(inside), need, over)
+        fits = lv.first_of(inside) if ends is None else _near_ends(aq, inside, ends, offsets)
+        return cls(gate, stored, fits, need, over)
 
     @property
     def top(self) -> float:
@@ -71,6 +81,81 @@ class Gates:
         """Whether each window lies inside its primitive (a new array: callers narrow it);
         those with ``need`` of arc left that run past its end are :attr:`over`."""
         return self.fits[ws[0] : ws[1]].copy() if isinstance(ws, tuple) else self.fits[ws]
+
+
+_SLACK = 2  # level points kept past the reach of an end's interval (a copy starts within Δ/2)
+
+
+def rough_skip(bank: BankIndex, time_scale: tuple[float, float], aq: ArcQuery,
+               path: PathPiece, a: float, b: float,
+               eps: float) -> tuple[np.ndarray | None, np.ndarray | None]:  # fmt: skip
+    """The primitives no window of which can be within eps of the piece's samples (the
+    check's, :meth:`._segment._Segmenter.probe`) by its roughness, and those none of whose
+    inside windows can (on a large bank, :mod:`._rough_diff`), or None: the arguments of
+    :meth:`Gates.of`. The time scales where the others' windows can be go to
+    ``aq.memo["scales"]`` (on a large bank those of the windows near a primitive's ends to
+    ``aq.memo["near"]``), which :func:`scale_ok` keeps to (a noisy piece)."""
+    kc = path.confirm_points(a, b)
+    if not 5 <= kc <= K_MAX:
+        return None, None
+    q = path.at(np.linspace(a, b, kc))
+    steps = (b - a) * path.duration / bank.dt
+    table = bank.roughness()
+    if isinstance(table, DiffRoughness):
+        sc = diff_scales(table, q, steps, time_scale, eps)
+        if sc is None:
+            return None, None
+        # the inside windows keep to the first range, those near an end to the second
+        skip, ends = sc[2] > sc[3], sc[0] > sc[1]
+        aq.memo["scales"] = sc[:2]
+        aq.memo["near"] = (*end_reach(aq, bank.offsets), *sc[2:])
+        return skip, ends & ~skip
+    scales = rough_scales(table, q, steps, time_scale, eps)
+    if scales is None:
+        return None, None
+    aq.memo["scales"] = scales
+    return scales[0] > scales[1], None
+
+
+def scale_ok(aq: ArcQuery, scale: np.ndarray, prim: np.ndarray, ws: np.ndarray | tuple[int, int],
+             time_scale: tuple[float, float]) -> np.ndarray:  # fmt: skip
+    """Whether each time scale (of window ``ws``, an index array or a range, of primitive
+    ``prim``) is in the range, with 10 % slack (the index's screen and its exact test must
+    agree on it, :meth:`._index_search.IndexSearch.in_range`): ``time_scale``, or each
+    primitive's within it where the piece's roughness narrows it (:func:`rough_skip`; on a
+    large bank the windows near a primitive's ends to a range of their own)."""
+    lo, hi = aq.memo.get("scales", time_scale)
+    if isinstance(lo, np.ndarray):
+        lo, hi = lo[prim], hi[prim]
+    ok = (scale >= lo / 1.1) & (scale <= hi * 1.1)
+    near = aq.memo.get("near")
+    if near is not None:
+        a, b, lo_e, hi_e = (v[prim] for v in near)
+        local = (np.arange(*ws) if isinstance(ws, tuple) else ws) - aq.level.start[prim]
+        ok |= ((local < a) | (local >= b)) & (scale >= lo_e / 1.1) & (scale <= hi_e * 1.1)
+    return ok
+
+
+def end_reach(aq: ArcQuery, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per primitive, (a, b): its windows before number a start before its sample 1 and
+    those from number b on end past its sample n − 2 (the windows that read a ghost,
+    :mod:`._rough_diff`), ``_SLACK`` level points wider; ``offsets``: the bank's (k + 1,)."""
+    lv, garc = aq.level, aq.index.garc_all
+    last = garc.size - 1
+    head = np.floor((garc[np.minimum(offsets[:-1] + 1, last)] - lv.first) / lv.step) + 1
+    tail = np.floor((garc[np.maximum(offsets[1:] - 2, 0)] - lv.first) / lv.step) + 1
+    return (head + _SLACK).astype(np.int64), (tail - aq.span - _SLACK).astype(np.int64)
+
+
+def _near_ends(aq: ArcQuery, inside: np.ndarray, ends: np.ndarray,
+               offsets: np.ndarray) -> np.ndarray:  # fmt: skip
+    """Mask (M,) of the first ``inside`` windows of each primitive, of those that ``ends``
+    marks only the ones :func:`end_reach` finds near an end."""
+    a, b = end_reach(aq, offsets)
+    a = np.where(ends, np.clip(a, 0, inside), inside)
+    b = np.where(ends, np.clip(b, a, inside), inside)
+    runs = np.column_stack([a, b - a, inside - b, aq.level.counts - inside]).ravel()
+    return np.repeat(np.tile(np.array([True, False, True, False]), a.size), runs)
 
 
 def overrun(ell: float, step: float, gate: float) -> float:

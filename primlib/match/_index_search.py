@@ -77,11 +77,12 @@ from primlib.match._cone import not_in as _not_in
 from primlib.match._drain import drain_sorted
 from primlib.match._ends import offer_overrun, score_points
 from primlib.match._gates import Gates as _Gates
+from primlib.match._gates import rough_skip, scale_ok
 from primlib.match._grid import GridSearch
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats, SeedMemo
 from primlib.match._pool import CandidatePool, reshift
 from primlib.match._rescan import rescan
-from primlib.match._rough import K_MAX, rough_scales
+from primlib.match._rough import K_MAX
 from primlib.match._smooth import Smoothed, piece_view, smooth_path, smooth_to, wiggly
 
 __all__ = ["IndexSearch", "ArcQuery"]
@@ -239,7 +240,7 @@ class IndexSearch:
         unless near its end (then found from the arc; with ``screen``, such windows are
         kept instead, and their end left approximate).
         """
-        lv = aq.level
+        lv, ts = aq.level, self.opts.time_scale
         last = lv.pts.shape[0] - 2
         r = aq.ell / lv.step
         off = int(math.floor(r))
@@ -264,23 +265,13 @@ class IndexSearch:
         if screen:
             # the screen: a window whose end crosses its primitive's last level point (a few
             # per block) stays, for the exact test of the batch that scores it
-            return self._scale_ok(aq, (x_end - x0) / aq.duration, prim) | ~inside, x_end
+            return scale_ok(aq, (x_end - x0) / aq.duration, prim, ws, ts) | ~inside, x_end
         fix = ~inside
         if np.any(fix):
             at = np.flatnonzero(fix)
             start = at + ws[0] if isinstance(ws, tuple) else ws[at]
             x_end[at] = aq.index.arc_to_sample(lv.garc[start] + aq.ell, lv.prim[start])
-        return self._scale_ok(aq, (x_end - x0) / aq.duration, prim), x_end
-
-    def _scale_ok(self, aq: ArcQuery, scale: np.ndarray, prim: np.ndarray) -> np.ndarray:
-        """Whether each time scale (of a window of primitive ``prim``) is in the range, with
-        :meth:`in_range`'s 10 % slack (the screen and the exact test must agree on it): the
-        options' range, or each primitive's within it where the piece's roughness narrows
-        it (:meth:`_rough_skip`)."""
-        lo, hi = aq.memo.get("scales", self.opts.time_scale)
-        if isinstance(lo, np.ndarray):
-            lo, hi = lo[prim], hi[prim]
-        return (scale >= lo / 1.1) & (scale <= hi * 1.1)
+        return scale_ok(aq, (x_end - x0) / aq.duration, prim, ws, ts), x_end
 
     def score(self, aq: ArcQuery, ws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Exact (combined score, shape RMSD) of the windows starting at ``ws``, float64
@@ -336,7 +327,8 @@ class IndexSearch:
         if aq.n_windows <= 0:
             return []
         self.stats.queries += 1
-        gates = _Gates.of(aq, eps, self._rough_skip(aq, path, a, b, eps))
+        skip = rough_skip(self.bank, self.opts.time_scale, aq, path, a, b, eps)
+        gates = _Gates.of(aq, eps, *skip, self.bank.offsets)
         pool = self._best_first(aq, gates)
         if pool.keys.size == 0:
             return []
@@ -351,23 +343,6 @@ class IndexSearch:
         if self.bank.points.shape[0] > GRID_BANK or aq.ell >= LOOSE_ARC * eps:
             return False
         return path.confirm_points(a, b) > K_MAX
-
-    def _rough_skip(self, aq: ArcQuery, path: PathPiece, a: float, b: float,
-                    eps: float) -> np.ndarray | None:  # fmt: skip
-        """The primitives no window of which can be within eps of the piece's samples (the
-        check's, :meth:`._segment._Segmenter.probe`) by its roughness, or None; the time
-        scales where the others' can be go to ``aq.memo["scales"]``, which
-        :meth:`in_range` keeps to (:func:`._rough.rough_scales`; a noisy piece)."""
-        kc = path.confirm_points(a, b)
-        if not 5 <= kc <= K_MAX:
-            return None
-        q = path.at(np.linspace(a, b, kc))
-        steps = (b - a) * path.duration / self.bank.dt
-        scales = rough_scales(self.bank.roughness(), q, steps, self.opts.time_scale, eps)
-        if scales is None:
-            return None
-        aq.memo["scales"] = scales
-        return scales[0] > scales[1]
 
     def _best_first(self, aq: ArcQuery, gates: _Gates) -> CandidatePool:
         """Score windows best-first in order of lower bounds until none left can enter the

@@ -44,7 +44,8 @@ powers of 2), each computed once per K and kept.
 Tried only on pieces of 5 to ``K_MAX`` samples (longer ones smooth a primitive's curvature into
 R_j, and the check seldom fails there for noise alone), where ‖(I − P) q‖/√K ≥ eps (else no
 primitive can be excluded), and on banks of at most ``BANK_MAX`` samples (each bin reads every
-window of the bank: ~5 ms on the 8,400 bundled samples, seconds on 2 million). A tighter R_j
+window of the bank: ~5 ms on the 8,400 bundled samples, seconds on 2 million; larger banks
+bound R_j from each primitive's differences instead, :mod:`._rough_diff`). A tighter R_j
 (:mod:`._rough_tight`, a quintic per support) rejects the shortest probes, where a failure
 searched or not changes nothing else in the segmentation.
 """

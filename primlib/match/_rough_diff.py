@@ -1,0 +1,200 @@
+"""The roughness bound (:mod:`._rough`) on banks too large for its table: R_j from each
+primitive's largest differences, its inside apart from its two ends.
+
+:mod:`._rough` bounds ‖(I − P) W‖ for every window of a primitive by reading every support
+of the bank, ~0.2-1 s a bin of h on 2 million samples, and its R_j is dominated by the
+windows that reach a primitive's first or last sample interval: the ghost the clamped
+Catmull-Rom repeats there (p̃_−1 = p_0) is a kink of the size of the first step, where a
+primitive does not start at rest. On 1,000 random primitives whose ends move, R_j was 0.28 by
+the median (K = 8, h in [1, 2]), above the roughness of the noise it was to reject; the inside
+windows' own is ~1e-5 (design log, stop 53). Here both parts are bounded from numbers kept
+per primitive, O(k) a bin:
+
+**Inside** (windows whose points all lie in [1, n − 2]: they read no ghost). Let P_p project
+onto the polynomials of degree ≤ p in the sample index (p = 3 as in :mod:`._rough`, or
+p = 2). Any L samples x of a support are T + Σ_j (Δ^(p+1) x)_j G_j, T the polynomial of degree
+p through the first p + 1 of them and G_j the sequence whose (p+1)-th differences are the unit
+impulse at j (G_j(m) = C(m − j − 1, p) for m > j + p, else 0). I − P_p removes T, so
+
+    ‖(I − P_p) x‖ ≤ D_(p+1) · c_p(L),   c_p(L) = Σ_j ‖(I − P_p) G_j‖,
+
+D_(p+1) the largest |Δ^(p+1)| of the primitive's samples (per coordinate, then the norm over
+coordinates), and the least-squares cubic's leading coefficient is at most D_3/6 +
+D_4·Σ_j |lead·G_j| (T's is Δ³/3!). With these in place of ‖r‖ and |a| the bound of
+:mod:`._rough` holds as written for p = 3; for p = 2 the interpolant reproduces the support's
+quadratic exactly, so ‖(I − P_2) W‖ ≤ ‖Φ‖₂·D_3·c_2(L), with no periodic term.
+
+**Ends.** A window reaching the first interval reads the ghost. Write it as the polynomial of
+degree p through p_0 ... p_p continued one sample back, plus δ = p_0 − that value: the
+continued sequence has no (p+1)-th difference at the ghost (its p-th is the next one's), so
+the inside bound holds for it, and the ghost's column of Φ adds ‖Φ e‖·‖δ‖, ‖Φ e‖ ≤ (2/27)·
+√(⌊1/h⌋ + 1) (the points in [0, 1) weigh it by φ on [1, 2]). The last interval likewise. So
+R_j of every window is the inside bound plus both ends' terms.
+
+The query's side is :mod:`._rough`'s, with P_p: the bound per primitive is the larger of the
+two degrees'. A primitive whose inside is excluded but not its ends keeps only the windows
+near its ends (:class:`._gates.Gates`); one excluded whole is skipped, and a probe none of
+whose primitives can hold the piece fails unsearched (:func:`._reject.rejects`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from scipy.special import comb
+
+from primlib.match._rough import _BINS, _EDGE, _G, _SHIFT, _U, K_MAX, _phi
+
+__all__ = ["DiffRoughness", "diff_scales"]
+
+_FAR = 2.0 / 27.0 * (1.0 + 1e-9)  # max |φ| on 1 ≤ |t| ≤ 2
+_DEGREES = (2, 3)
+
+
+@functools.lru_cache(maxsize=16)
+def _projector(k: int, p: int) -> np.ndarray:
+    """Orthonormal basis (k, p + 1) of the polynomials of degree ≤ p in the sample index."""
+    t = np.arange(k, dtype=float) - 0.5 * (k - 1)
+    return np.linalg.qr(np.vander(t / max(k - 1, 1), p + 1, increasing=True))[0]
+
+
+@functools.lru_cache(maxsize=256)
+def constants(size: int, p: int) -> tuple[float, float]:
+    """(c_p(L), Σ_j |lead·G_j|) for supports of at most ``size`` samples (module notes): the
+    largest over L ≤ size (a short primitive's support is all of it); (0, 0) below p + 2."""
+    best = (0.0, 0.0)
+    for n in range(p + 2, size + 1):
+        basis = _projector(n, p)
+        m = np.arange(n)
+        j = np.arange(n - p - 1)[:, None]
+        green = np.where(m >= j + p + 1, comb(m - j - 1, p), 0.0)  # (n − p − 1, n)
+        res = green - (green @ basis) @ basis.T
+        c = float(np.sqrt(np.einsum("jm,jm->j", res, res)).sum())
+        lead = 0.0
+        if p == 3:
+            t = np.arange(n, dtype=float) - 0.5 * (n - 1)
+            lead = float(np.abs(green @ np.linalg.pinv(np.vander(t, 4, increasing=True))[3]).sum())
+        best = (max(best[0], c), max(best[1], lead))
+    return best[0] * (1.0 + 1e-9), best[1] * (1.0 + 1e-9)
+
+
+def query_residual(q: np.ndarray, p: int) -> float:
+    """‖(I − P_p) q‖ of the piece's K samples, less a margin for round-off."""
+    k, d = q.shape
+    basis = _projector(k, p)
+    qc = q - q.mean(axis=0)
+    res = qc - basis @ (basis.T @ qc)
+    margin = _U * float(np.abs(q).max()) * math.sqrt(k * d)
+    return max(float(np.sqrt(np.einsum("kd,kd->", res, res))) - margin, 0.0)
+
+
+class DiffRoughness:
+    """Per primitive, its largest third and fourth differences and its ends' ghost terms
+    (module notes); R_j of a bin of h from them."""
+
+    def __init__(self, points: np.ndarray, offsets: np.ndarray) -> None:
+        offsets = np.asarray(offsets, dtype=np.int64)
+        counts = np.diff(offsets)
+        self.scale = float(np.abs(points).max()) if points.size else 0.0
+        ok = counts >= 5  # shorter: no fourth difference, never excluded
+        first = offsets[:-1][ok]
+        self.dmax = {}
+        for order in (3, 4):
+            # the differences of the whole bank, those that cross a primitive's end dropped:
+            # each primitive's run of them starts at its first sample
+            rows = np.abs(np.diff(points, order, axis=0))
+            within = np.arange(rows.shape[0]) - np.repeat(offsets[:-1], counts)[:-order]
+            limit = np.where(ok, counts - order - 1, -1)  # a short one's own rows too
+            rows[within > np.repeat(limit, counts)[:-order]] = -np.inf
+            out = np.full(counts.size, np.inf)
+            if first.size:
+                out[ok] = np.linalg.norm(np.maximum.reduceat(rows, first, axis=0), axis=1)
+            self.dmax[order] = out
+        # extrapolation one sample back by the polynomial of degree p through p + 1 samples
+        back = {2: np.array([3.0, -3.0, 1.0]), 3: np.array([4.0, -6.0, 4.0, -1.0])}
+        self.ghost = {}
+        last = offsets[1:][ok] - 1
+        for p, w in back.items():
+            head = sum(w[i] * points[first + i] for i in range(p + 1))
+            tail = sum(w[i] * points[last - i] for i in range(p + 1))
+            out = np.full(counts.size, np.inf)
+            out[ok] = np.linalg.norm(points[first] - head, axis=1) + np.linalg.norm(
+                points[last] - tail, axis=1
+            )
+            self.ghost[p] = out
+
+    def bins(self, k: int, h_lo: float, h_hi: float,
+             p: int) -> list[tuple[float, float, np.ndarray, np.ndarray]]:  # fmt: skip
+        """(h0, h1, inside R_j, every window's R_j) of each bin [h0, h1] of :mod:`._rough`'s
+        grid that h in [h_lo, h_hi] falls in, lowest first, for K = ``k`` and degree ``p``."""
+        b0 = math.floor(_BINS * math.log2(h_lo / _SHIFT) + _EDGE)
+        b1 = max(math.ceil(_BINS * math.log2(h_hi / _SHIFT) - _EDGE), b0 + 1)
+        out = []
+        for b in range(b0, b1):
+            h0, h1 = _SHIFT * 2.0 ** (b / _BINS), _SHIFT * 2.0 ** ((b + 1) / _BINS)
+            out.append((h0, h1, *self._bin(k, h0, h1, p)))
+        return out
+
+    def bound(self, k: int, h_lo: float, h_hi: float, p: int) -> tuple[np.ndarray, np.ndarray]:
+        """(inside, every window) R_j of every primitive over h in [h_lo, h_hi]: the largest
+        of the bins'."""
+        bins = self.bins(k, h_lo, h_hi, p)
+        return tuple(np.maximum.reduce([b[i] for b in bins]) for i in (2, 3))
+
+    def _bin(self, k: int, h0: float, h1: float, p: int) -> tuple[np.ndarray, np.ndarray]:
+        size = math.floor(1.0 + (k - 1) * h1 * (1.0 + 1e-9)) + 4  # as :mod:`._rough`'s supports
+        phi = _phi(h0 * (1.0 - 1e-9))
+        c, lead = constants(size, p)
+        d4, d3 = self.dmax[4], self.dmax[3]
+        with np.errstate(invalid="ignore"):  # inf · 0 on primitives too short
+            if p == 3:
+                inside = phi * c * d4 + _G * math.sqrt(k) * (d3 / 6.0 + lead * d4)
+            else:
+                inside = phi * c * d3
+        # round-off: each difference errs by ≤ 2^(p+1)·(p + 1)·u·scale per coordinate
+        inside = inside + _U * self.scale * (phi * (c + lead) * 2.0 ** (p + 1) * 3.0 + math.sqrt(k))
+        ends = _FAR * math.sqrt(math.floor(1.0 / (h0 * (1.0 - 1e-9))) + 1.0) * self.ghost[p]
+        return inside, inside + ends
+
+
+def diff_scales(table: DiffRoughness, q: np.ndarray, steps: float,
+                time_scale: tuple[float, float],
+                eps: float) -> tuple[np.ndarray, ...] | None:  # fmt: skip
+    """Per primitive j, the time scales [lo_j, hi_j] within ``time_scale`` where one of its
+    inside windows may lie within eps of the piece ``q`` (K, d), which lasts ``steps`` sample
+    steps of the bank, and those where one of any of its windows may: (lo_in, hi_in, lo_all,
+    hi_all), lo_j > hi_j where there is none. A bin of h is left out where either degree's
+    (‖(I − P_p) q‖ − R_j)/√K reaches eps. None where no bin can be (K outside 5 ...
+    ``K_MAX``, or a piece within eps of its own polynomials of both degrees)."""
+    k = q.shape[0]
+    if not 5 <= k <= K_MAX:
+        return None
+    per = steps / (k - 1)  # h of a window at time scale 1
+    lo, hi = time_scale
+    keep = None  # (2, bins, k): inside, every
+    for p in _DEGREES:
+        rq = query_residual(q, p)
+        if rq < eps * math.sqrt(k):
+            continue
+        bins = table.bins(k, lo * per, hi * per, p)
+        kept = np.array([[(rq - r) / math.sqrt(k) < eps * (1.0 + 1e-9) for r in b[2:]]
+                         for b in bins]).transpose(1, 0, 2)  # fmt: skip
+        keep = kept if keep is None else keep & kept
+    if keep is None:
+        return None
+    h0 = np.array([b[0] for b in bins]) * (1.0 - 1e-9)
+    h1 = np.array([b[1] for b in bins]) * (1.0 + 1e-9)
+    out = []
+    for part in keep:  # each primitive's first and last bin kept, as in _rough.rough_scales
+        first, last = part.argmax(axis=0), part.shape[0] - 1 - part[::-1].argmax(axis=0)
+        none = ~part.any(axis=0)
+        out += [np.where(none, np.inf, np.maximum(h0[first] / per, lo)),
+                np.where(none, -np.inf, np.minimum(h1[last] / per, hi))]  # fmt: skip
+    return tuple(out)
+
+
+def _norm_of_max(diffs: np.ndarray) -> float:
+    """‖(max |column|)‖ over the coordinates of a (m, d) array of differences."""
+    return float(np.linalg.norm(np.abs(diffs).max(axis=0)))
