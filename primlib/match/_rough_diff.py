@@ -95,35 +95,40 @@ class DiffRoughness:
     (module notes); R_j of a bin of h from them."""
 
     def __init__(self, points: np.ndarray, offsets: np.ndarray) -> None:
-        offsets = np.asarray(offsets, dtype=np.int64)
-        counts = np.diff(offsets)
-        self.scale = float(np.abs(points).max()) if points.size else 0.0
-        ok = counts >= 5  # shorter: no fourth difference, never excluded
-        first = offsets[:-1][ok]
-        self.dmax = {}
-        for order in (3, 4):
-            # the differences of the whole bank, those that cross a primitive's end dropped:
-            # each primitive's run of them starts at its first sample
-            rows = np.abs(np.diff(points, order, axis=0))
-            within = np.arange(rows.shape[0]) - np.repeat(offsets[:-1], counts)[:-order]
-            limit = np.where(ok, counts - order - 1, -1)  # a short one's own rows too
-            rows[within > np.repeat(limit, counts)[:-order]] = -np.inf
-            out = np.full(counts.size, np.inf)
-            if first.size:
-                out[ok] = np.linalg.norm(np.maximum.reduceat(rows, first, axis=0), axis=1)
-            self.dmax[order] = out
-        # extrapolation one sample back by the polynomial of degree p through p + 1 samples
-        back = {2: np.array([3.0, -3.0, 1.0]), 3: np.array([4.0, -6.0, 4.0, -1.0])}
-        self.ghost = {}
-        last = offsets[1:][ok] - 1
-        for p, w in back.items():
-            head = sum(w[i] * points[first + i] for i in range(p + 1))
-            tail = sum(w[i] * points[last - i] for i in range(p + 1))
-            out = np.full(counts.size, np.inf)
-            out[ok] = np.linalg.norm(points[first] - head, axis=1) + np.linalg.norm(
-                points[last] - tail, axis=1
-            )
-            self.ghost[p] = out
+        self.points = points
+        self.offsets = np.asarray(offsets, dtype=np.int64)
+        # the largest |coordinate|, without an (N, d) temporary
+        self.scale = max(float(points.max()), -float(points.min())) if points.size else 0.0
+        self._dmax: dict[int, np.ndarray] | None = None
+        self._ghost: dict[int, np.ndarray] = {}
+
+    @property
+    def dmax(self) -> dict[int, np.ndarray]:
+        """Per primitive, the norm over coordinates of its largest |Δ³| and |Δ⁴| (inf for one
+        of fewer than 5 samples: never excluded), computed at the first probe that needs them
+        (a clean path never does: 0.1-0.2 s on 2 million samples)."""
+        if self._dmax is None:
+            self._dmax = _largest_differences(self.points, self.offsets)
+        return self._dmax
+
+    @property
+    def ghost(self) -> dict[int, np.ndarray]:
+        """Per primitive, ‖δ‖ at its first sample plus at its last (module notes), for the
+        degrees 2 and 3."""
+        if not self._ghost:
+            off, pts = self.offsets, self.points
+            ok = np.diff(off) >= 5
+            first, last = off[:-1][ok], off[1:][ok] - 1
+            # the polynomial of degree p through p + 1 samples, one sample on
+            back = {2: np.array([3.0, -3.0, 1.0]), 3: np.array([4.0, -6.0, 4.0, -1.0])}
+            for p, w in back.items():
+                head = sum(w[i] * pts[first + i] for i in range(p + 1))
+                tail = sum(w[i] * pts[last - i] for i in range(p + 1))
+                out = np.full(off.size - 1, np.inf)
+                out[ok] = np.linalg.norm(pts[first] - head, axis=1)
+                out[ok] += np.linalg.norm(pts[last] - tail, axis=1)
+                self._ghost[p] = out
+        return self._ghost
 
     def bins(self, k: int, h_lo: float, h_hi: float,
              p: int) -> list[tuple[float, float, np.ndarray, np.ndarray]]:  # fmt: skip
@@ -195,6 +200,24 @@ def diff_scales(table: DiffRoughness, q: np.ndarray, steps: float,
     return tuple(out)
 
 
-def _norm_of_max(diffs: np.ndarray) -> float:
-    """‖(max |column|)‖ over the coordinates of a (m, d) array of differences."""
-    return float(np.linalg.norm(np.abs(diffs).max(axis=0)))
+def _largest_differences(points: np.ndarray, offsets: np.ndarray) -> dict[int, np.ndarray]:
+    """{3: D_3, 4: D_4} per primitive (:attr:`DiffRoughness.dmax`): the differences of the
+    whole bank a coordinate at a time (bounded temporaries), those that cross a primitive's
+    end dropped, the largest of each primitive's run (it starts at its first sample)."""
+    counts = np.diff(offsets)
+    ok = counts >= 5
+    first = offsets[:-1][ok]
+    local = np.arange(points.shape[0]) - np.repeat(offsets[:-1], counts)
+    out = {}
+    for order in (3, 4):
+        limit = np.where(ok, counts - order - 1, -1)  # a short one's own rows too
+        drop = local[:-order] > np.repeat(limit, counts)[:-order]
+        top = np.zeros((first.size, points.shape[1]))
+        for c in range(points.shape[1]):
+            col = np.abs(np.diff(points[:, c], order))
+            col[drop] = -np.inf
+            if first.size:
+                top[:, c] = np.maximum.reduceat(col, first)
+        out[order] = np.full(counts.size, np.inf)
+        out[order][ok] = np.linalg.norm(top, axis=1)
+    return out
