@@ -100,7 +100,7 @@ class DiffRoughness:
         # the largest |coordinate|, without an (N, d) temporary
         self.scale = max(float(points.max()), -float(points.min())) if points.size else 0.0
         self._dmax: dict[int, np.ndarray] | None = None
-        self._ghost: dict[int, np.ndarray] = {}
+        self._ghost: dict[int, np.ndarray] | None = None
 
     @property
     def dmax(self) -> dict[int, np.ndarray]:
@@ -114,20 +114,21 @@ class DiffRoughness:
     @property
     def ghost(self) -> dict[int, np.ndarray]:
         """Per primitive, ‖δ‖ at its first sample plus at its last (module notes), for the
-        degrees 2 and 3."""
-        if not self._ghost:
+        degrees 2 and 3 (inf for one of fewer than 5 samples)."""
+        if self._ghost is None:
             off, pts = self.offsets, self.points
             ok = np.diff(off) >= 5
             first, last = off[:-1][ok], off[1:][ok] - 1
             # the polynomial of degree p through p + 1 samples, one sample on
             back = {2: np.array([3.0, -3.0, 1.0]), 3: np.array([4.0, -6.0, 4.0, -1.0])}
+            ghost = {}
             for p, w in back.items():
                 head = sum(w[i] * pts[first + i] for i in range(p + 1))
                 tail = sum(w[i] * pts[last - i] for i in range(p + 1))
-                out = np.full(off.size - 1, np.inf)
-                out[ok] = np.linalg.norm(pts[first] - head, axis=1)
-                out[ok] += np.linalg.norm(pts[last] - tail, axis=1)
-                self._ghost[p] = out
+                ghost[p] = np.full(off.size - 1, np.inf)
+                ghost[p][ok] = np.linalg.norm(pts[first] - head, axis=1)
+                ghost[p][ok] += np.linalg.norm(pts[last] - tail, axis=1)
+            self._ghost = ghost  # whole, at once: a server's readers share the bank
         return self._ghost
 
     def bins(self, k: int, h_lo: float, h_hi: float,
