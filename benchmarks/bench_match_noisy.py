@@ -30,8 +30,12 @@ grid's.
 Goal (issue 13): >= 59 of 60 answered at each noise level, as the grid; index cuts where the
 grid cuts.
 
+With ``--unmatched-only --copies N``, the unmatched table on a library of N copies of the
+bundled primitives, each turned and moved (realistic primitives, at rest at their ends, in a
+bank past the roughness table's size from 17 copies on).
+
 Run: ``python benchmarks/bench_match_noisy.py [--queries 60] [--joined 10] [--big]
-[--stored-noise] [--deformed 14] [--unmatched] [--unmatched-only]``.
+[--stored-noise] [--deformed 14] [--unmatched] [--unmatched-only [--copies 24]]``.
 """
 
 from __future__ import annotations
@@ -96,6 +100,22 @@ def library(kind: str) -> BankIndex:
         amp = rng.normal(size=(1, 4, 3)) * 30.0 / f**1.5
         ph = rng.uniform(0, 2 * np.pi, size=(1, 4, 3))
         pieces.append((amp * np.sin(2 * np.pi * f * t + ph)).sum(axis=1))
+    return BankIndex(Bank.from_samples(pieces, DT))
+
+
+def copies_library(copies: int, seed: int = 7) -> BankIndex:
+    """``copies`` copies of the bundled primitives, each copy turned and moved at random: a
+    library of realistic primitives (at rest at their ends) past the roughness table's 131,072
+    samples from 17 copies on, whose bound is then taken from the differences
+    (``primlib/match/_rough_diff.py``). Its first 14 rows are the bundled primitives turned,
+    so :func:`single_queries` draws from them."""
+    small = library("bundled")
+    rng = np.random.default_rng(seed)
+    pieces = []
+    for _ in range(copies):
+        turn = Rotation.random(random_state=int(rng.integers(2**31))).as_matrix()
+        pieces += [small.points_of(j) @ turn.T + rng.uniform(-50, 50, small.dim)
+                   for j in range(small.k)]  # fmt: skip
     return BankIndex(Bank.from_samples(pieces, DT))
 
 
@@ -306,11 +326,16 @@ def main() -> None:
     ap.add_argument("--unmatched-only", action="store_true",
                     help="only the unmatched table, by the index alone (with --big: fast enough "
                          "for 1,000 primitives)")  # fmt: skip
+    ap.add_argument("--copies", type=int, default=0,
+                    help="with --unmatched-only: instead, a library of this many copies of the "
+                         "bundled primitives, turned (24: 188,016 samples)")  # fmt: skip
     args = ap.parse_args()
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     kinds = ["bundled", "random-1000"] if args.big else ["bundled"]
+    if args.copies:
+        kinds = [f"bundled x {args.copies}"]
     for kind in kinds:
-        bank = library(kind)
+        bank = copies_library(args.copies) if args.copies else library(kind)
         print(f"\n{kind} library ({bank.k} primitives), eps = 2 x noise RMS")
         if args.unmatched_only:
             unmatched_table(bank, args.queries, searches=("index",))

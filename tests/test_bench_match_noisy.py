@@ -3,6 +3,7 @@ library at 0.1 % and 1 % noise, and one path of three joined pieces, as in the b
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from bench_import import benchmark_modules
 
@@ -50,3 +51,22 @@ def test_the_unmatched_table_can_leave_the_grid_out(capsys):
         assert "grid" not in res[level] and res[level]["index"]["matched"] < 0.5
     out = capsys.readouterr().out
     assert "| 0.1 % | index |" in out and "| grid |" not in out
+
+
+def test_copies_of_the_bundled_library_make_a_bank_past_the_table(capsys):
+    # 17 copies of the 7,834 bundled samples: past the table's 131,072, so the roughness
+    # bound comes from the differences; the copies are the bundled primitives turned and moved
+    from primlib.match._rough import BANK_MAX
+    from primlib.match._rough_diff import DiffRoughness
+
+    bench = _bench()
+    small, bank = bench.library("bundled"), bench.copies_library(17)
+    assert bank.k == 17 * small.k and bank.points.shape[0] > BANK_MAX
+    assert isinstance(bank.roughness(), DiffRoughness)
+    for j in (0, small.k - 1, 16 * small.k + 3):
+        a, b = small.points_of(j % small.k), bank.points_of(j)
+        assert np.allclose(np.diff(np.linalg.norm(a - a[0], axis=1)),
+                           np.diff(np.linalg.norm(b - b[0], axis=1)), atol=1e-9)  # fmt: skip
+    res = bench.unmatched_table(bank, 1, searches=("index",))
+    assert all(res[level]["index"]["matched"] < 0.5 for level in bench.NOISE)
+    assert "| 1 % | index |" in capsys.readouterr().out
