@@ -35,12 +35,12 @@ class Gates:
 
     @classmethod
     def of(cls, aq: ArcQuery, eps: float, skip: np.ndarray | None = None,
-           ends: np.ndarray | None = None, offsets: np.ndarray | None = None) -> Gates:  # fmt: skip
+           ends: np.ndarray | None = None) -> Gates:  # fmt: skip
         """The gates of query ``aq``; no window of a primitive that ``skip`` (k,) marks
         (one no window of which can be within eps, :func:`._rough.rough_bounds`) valid, and
         of one that ``ends`` (k,) marks (none of whose inside windows can be,
-        :mod:`._rough_diff`) only those near its first or last sample (:func:`_near_ends`;
-        ``offsets``: the bank's, (k + 1,))."""
+        :mod:`._rough_diff`) only those near its first or last sample (:func:`_near_ends`,
+        from the reach :func:`rough_skip` put in ``aq.memo["near"]``)."""
         # a stored copy starts within half a base step of some window start, which moves
         # every arc sample by at most that: its window's shape RMSD is below the gate; the
         # copy is within eps + smoothing (+ the stored window's own) of what the index holds
@@ -58,7 +58,7 @@ class Gates:
         if skip is not None:
             inside, extra = np.where(skip, 0, inside), np.where(skip, 0, extra)
         over = np.repeat(lv.start + inside, extra) + _ranks(extra)
-        fits = lv.first_of(inside) if ends is None else _near_ends(aq, inside, ends, offsets)
+        fits = lv.first_of(inside) if ends is None else _near_ends(aq, inside, ends)
         return cls(gate, stored, fits, need, over)
 
     @property
@@ -147,11 +147,10 @@ def end_reach(aq: ArcQuery, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return (head + _SLACK).astype(np.int64), (tail - aq.span - _SLACK).astype(np.int64)
 
 
-def _near_ends(aq: ArcQuery, inside: np.ndarray, ends: np.ndarray,
-               offsets: np.ndarray) -> np.ndarray:  # fmt: skip
+def _near_ends(aq: ArcQuery, inside: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """Mask (M,) of the first ``inside`` windows of each primitive, of those that ``ends``
-    marks only the ones :func:`end_reach` finds near an end."""
-    a, b = end_reach(aq, offsets)
+    marks only the ones near an end (:func:`end_reach`, as :func:`rough_skip` kept it)."""
+    a, b = aq.memo["near"][:2]
     a = np.where(ends, np.clip(a, 0, inside), inside)
     b = np.where(ends, np.clip(b, a, inside), inside)
     runs = np.column_stack([a, b - a, inside - b, aq.level.counts - inside]).ravel()

@@ -328,7 +328,7 @@ class IndexSearch:
             return []
         self.stats.queries += 1
         skip = rough_skip(self.bank, self.opts.time_scale, aq, path, a, b, eps)
-        gates = _Gates.of(aq, eps, *skip, self.bank.offsets)
+        gates = _Gates.of(aq, eps, *skip)
         pool = self._best_first(aq, gates)
         if pool.keys.size == 0:
             return []
