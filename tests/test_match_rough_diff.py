@@ -11,8 +11,8 @@ from test_match_rough import _bank
 
 from primlib.match import BankIndex, kabsch, segment_path
 from primlib.match._interp import cubic_at
-from primlib.match._rough import Roughness
-from primlib.match._rough_diff import DiffRoughness, constants, diff_scales, query_residual
+from primlib.match._rough import Roughness, query_roughness
+from primlib.match._rough_diff import DiffRoughness, constants, diff_scales
 from primlib.store import Bank
 
 
@@ -88,7 +88,7 @@ def test_the_lower_bounds_never_exceed_the_exact_rmsd(seed, k, noise, waves):
     # steps = (k − 1): h of a window at time scale s is s, so (0.5, 2) is the range drawn
     table = DiffRoughness(index.points, index.offsets)
     for p in (2, 3):
-        rq = query_residual(q, p)
+        rq = query_roughness(q, p)
         for part, r in zip((True, False), table.bound(k, 0.5, 2.0, p), strict=True):
             lb = (rq - r) / np.sqrt(k)
             for j2 in range(index.k):
@@ -111,7 +111,7 @@ def test_no_window_outside_its_time_scales_is_within_eps(seed, k, noise, share, 
     j = int(rng.integers(1, index.k))
     piece = _windows(rng, index, j, k, 0.5, 2.0, False, m=3)[2]
     q = piece + rng.normal(size=piece.shape) * noise
-    eps = share * query_residual(q, 3) / np.sqrt(k)  # rough enough to narrow something
+    eps = share * query_roughness(q, 3) / np.sqrt(k)  # rough enough to narrow something
     table = DiffRoughness(index.points, index.offsets)
     lo_in, hi_in, lo_all, hi_all = diff_scales(table, q, k - 1.0, (0.25, 4.0), eps)
     for r in range(index.k):
@@ -146,14 +146,14 @@ def test_a_polynomial_is_its_own_fit_and_the_constants_grow_with_the_support():
     m = np.arange(12.0)[:, None]
     for p in (2, 3):
         poly = np.hstack([m**p, m, np.ones_like(m)])
-        assert query_residual(poly, p) == 0.0
-        assert query_residual(poly + np.eye(12)[:, :3], p) > 0.5
+        assert query_roughness(poly, p) == 0.0
+        assert query_roughness(poly + np.eye(12)[:, :3], p) > 0.5
     for p in (2, 3):
         c = [constants(n, p)[0] for n in range(p + 2, 30)]
         assert np.all(np.diff(c) > 0)
     # a fourth-degree sequence: its (I − P_3) residual is c_3 · its fourth difference at most
     x = (np.arange(20.0) ** 4 / 24.0)[:, None]
-    assert query_residual(x, 3) <= constants(20, 3)[0] * 1.0 + 1e-9
+    assert query_roughness(x, 3) <= constants(20, 3)[0] * 1.0 + 1e-9
 
 
 @pytest.mark.parametrize("n", [3, 4])
@@ -184,7 +184,7 @@ def test_a_large_banks_search_keeps_the_windows_that_read_a_ghost(monkeypatch):
     x = 0.3 + np.arange(k, dtype=float)
     piece = cubic_at(index.points, index.offsets[j], int(index.counts[j]), x)
     piece = piece + rng.normal(size=piece.shape) * 1e-4
-    eps = 0.6 * query_residual(piece, 3) / np.sqrt(k)
+    eps = 0.6 * query_roughness(piece, 3) / np.sqrt(k)
     table = index.roughness()
     lo_in, hi_in, lo_all, hi_all = diff_scales(table, piece, k - 1.0, (0.6, 1.0), eps)
     assert np.all(lo_in > hi_in)  # no inside window of any primitive is within eps

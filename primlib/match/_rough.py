@@ -61,7 +61,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from primlib.match._rough_tight import tight_bin
 
 __all__ = ["Roughness", "block_roughness", "query_roughness", "rough_bounds", "rough_scales",
-           "K_MAX", "BANK_MAX"]  # fmt: skip
+           "bin_edges", "scales_kept", "K_MAX", "BANK_MAX"]  # fmt: skip
 
 K_MAX = 16  # samples of the longest piece tried
 BANK_MAX = 1 << 17  # stored samples of the largest bank tried
@@ -75,19 +75,21 @@ _EDGE = 1e-10  # log2(1 + 1e-9) > 1.4e-9: a bin covers h a relative 1e-9 past it
 _SHIFT = 1.01
 
 
-def query_roughness(q: np.ndarray) -> float:
+def query_roughness(q: np.ndarray, p: int = 3) -> float:
     """‖(I − P) q‖ of the piece's K samples (K, d), less a margin for round-off (0 for
-    K ≤ 4: every sequence is then a cubic): :func:`block_roughness` of the one piece."""
-    return float(block_roughness(q[None])[0])
+    K ≤ p + 1: every sequence is then a polynomial of degree p; P the polynomials of degree
+    ≤ ``p``, cubics here, :mod:`._rough_diff` also quadratics): :func:`block_roughness` of the
+    one piece."""
+    return float(block_roughness(q[None], p)[0])
 
 
-def block_roughness(blocks: np.ndarray) -> np.ndarray:
+def block_roughness(blocks: np.ndarray, p: int = 3) -> np.ndarray:
     """‖(I − P) q‖ of each of m pieces of K samples, (m, K, d) → (m,), less a margin for
-    round-off (relative ``_U`` of the piece's largest coordinate; 0 for K ≤ 4)."""
+    round-off (relative ``_U`` of the piece's largest coordinate; 0 for K ≤ p + 1)."""
     m, k, d = blocks.shape
-    if k <= 4:
+    if k <= p + 1:
         return np.zeros(m)
-    basis = _basis(k)
+    basis = _basis(k, p)
     qc = blocks - blocks.mean(axis=1, keepdims=True)
     res = qc - np.einsum("kj,mjd->mkd", basis, np.einsum("kj,mkd->mjd", basis, qc))
     norm = np.sqrt(np.einsum("mkd,mkd->m", res, res))
@@ -95,11 +97,39 @@ def block_roughness(blocks: np.ndarray) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=64)
-def _basis(k: int) -> np.ndarray:
-    """Orthonormal basis (k, 4) of the cubics in the sample index (kept per k: every short
-    probe asks)."""
+def _basis(k: int, p: int = 3) -> np.ndarray:
+    """Orthonormal basis (k, p + 1) of the polynomials of degree ≤ p (cubics) in the sample
+    index (kept per k: every short probe asks)."""
     t = np.arange(k, dtype=float) - 0.5 * (k - 1)
-    return np.linalg.qr(np.vander(t / max(k - 1, 1), 4, increasing=True))[0]
+    return np.linalg.qr(np.vander(t / max(k - 1, 1), p + 1, increasing=True))[0]
+
+
+def bin_edges(h_lo: float, h_hi: float) -> list[tuple[int, float, float]]:
+    """(number, h0, h1) of each bin of the fixed geometric grid in h (module notes) that h in
+    [h_lo, h_hi] falls in, lowest first. Each bin holds h up to a relative 1e-9 past its
+    edges: a range that ends on a bin's edge but for round-off (h at time scale 4 is
+    4·(1 + ε) when the path's dt is the bank's) asks for no bin beyond, whose supports are
+    twice as long."""
+    b0 = math.floor(_BINS * math.log2(h_lo / _SHIFT) + _EDGE)
+    b1 = max(math.ceil(_BINS * math.log2(h_hi / _SHIFT) - _EDGE), b0 + 1)
+    return [(b, _SHIFT * 2.0 ** (b / _BINS), _SHIFT * 2.0 ** ((b + 1) / _BINS))
+            for b in range(b0, b1)]  # fmt: skip
+
+
+def scales_kept(keep: np.ndarray, edges: list[tuple[float, float]], per: float,
+                time_scale: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Per primitive, the hull [lo_j, hi_j] within ``time_scale`` of the bins ``keep``
+    (bins, k) keeps, in time scales (h / ``per``; ``edges`` the bins' (h0, h1)); lo_j > hi_j
+    where it keeps none."""
+    lo, hi = time_scale
+    # the first and last bin each primitive keeps (argmax on a column of False: 0, masked)
+    first, last = keep.argmax(axis=0), keep.shape[0] - 1 - keep[::-1].argmax(axis=0)
+    h0 = np.array([e[0] for e in edges]) * (1.0 - 1e-9)
+    h1 = np.array([e[1] for e in edges]) * (1.0 + 1e-9)
+    none = ~keep.any(axis=0)
+    s_lo = np.where(none, np.inf, np.maximum(h0[first] / per, lo))
+    s_hi = np.where(none, -np.inf, np.minimum(h1[last] / per, hi))
+    return s_lo, s_hi
 
 
 class Roughness:
@@ -141,18 +171,12 @@ class Roughness:
 
     def bins(self, k: int, h_lo: float, h_hi: float) -> list[tuple[float, float, np.ndarray]]:
         """(h0, h1, R_j of every primitive) of each bin [h0, h1] that h in [h_lo, h_hi]
-        falls in, lowest first (each bin holds h up to a relative 1e-9 past its edges)."""
-        # each bin holds h up to (1 + 1e-9) its top (:meth:`_bin`): a range that ends on a
-        # bin's edge but for round-off (h at time scale 4 is 4·(1 + ε) when the path's dt is
-        # the bank's) asks for no bin beyond, whose supports are twice as long
-        b0 = math.floor(_BINS * math.log2(h_lo / _SHIFT) + _EDGE)
-        b1 = max(math.ceil(_BINS * math.log2(h_hi / _SHIFT) - _EDGE), b0 + 1)
+        falls in, lowest first (:func:`bin_edges`)."""
         out = []
-        for b in range(b0, b1):
-            edges = _SHIFT * 2.0 ** (b / _BINS), _SHIFT * 2.0 ** ((b + 1) / _BINS)
+        for b, h0, h1 in bin_edges(h_lo, h_hi):
             if (k, b) not in self._bins:
-                self._bins[(k, b)] = self._bin(k, *edges)
-            out.append((*edges, self._bins[(k, b)]))
+                self._bins[(k, b)] = self._bin(k, h0, h1)
+            out.append((h0, h1, self._bins[(k, b)]))
         return out
 
     def _bin(self, k: int, h0: float, h1: float) -> np.ndarray:
@@ -237,14 +261,7 @@ def rough_scales(rough: Roughness | None, q: np.ndarray, steps: float,
     lo, hi = time_scale
     bins = rough.bins(k, lo * per, hi * per)
     keep = np.array([(rq - r) / math.sqrt(k) < eps * (1.0 + 1e-9) for _, _, r in bins])
-    # the first and last bin each primitive keeps (argmax on a column of False: 0, masked)
-    first, last = keep.argmax(axis=0), keep.shape[0] - 1 - keep[::-1].argmax(axis=0)
-    h0 = np.array([b[0] for b in bins]) * (1.0 - 1e-9)
-    h1 = np.array([b[1] for b in bins]) * (1.0 + 1e-9)
-    none = ~keep.any(axis=0)
-    s_lo = np.where(none, np.inf, np.maximum(h0[first] / per, lo))
-    s_hi = np.where(none, -np.inf, np.minimum(h1[last] / per, hi))
-    return s_lo, s_hi
+    return scales_kept(keep, [b[:2] for b in bins], per, time_scale)
 
 
 def _rough_query(rough: Roughness | None, q: np.ndarray, eps: float) -> float | None:

@@ -45,19 +45,21 @@ import math
 import numpy as np
 from scipy.special import comb
 
-from primlib.match._rough import _BINS, _EDGE, _G, _SHIFT, _U, K_MAX, _phi
+from primlib.match._rough import (
+    _G,
+    _U,
+    K_MAX,
+    _basis,
+    _phi,
+    bin_edges,
+    query_roughness,
+    scales_kept,
+)
 
 __all__ = ["DiffRoughness", "diff_scales"]
 
 _FAR = 2.0 / 27.0 * (1.0 + 1e-9)  # max |φ| on 1 ≤ |t| ≤ 2
 _DEGREES = (2, 3)
-
-
-@functools.lru_cache(maxsize=16)
-def _projector(k: int, p: int) -> np.ndarray:
-    """Orthonormal basis (k, p + 1) of the polynomials of degree ≤ p in the sample index."""
-    t = np.arange(k, dtype=float) - 0.5 * (k - 1)
-    return np.linalg.qr(np.vander(t / max(k - 1, 1), p + 1, increasing=True))[0]
 
 
 @functools.lru_cache(maxsize=256)
@@ -66,7 +68,7 @@ def constants(size: int, p: int) -> tuple[float, float]:
     largest over L ≤ size (a short primitive's support is all of it); (0, 0) below p + 2."""
     best = (0.0, 0.0)
     for n in range(p + 2, size + 1):
-        basis = _projector(n, p)
+        basis = _basis.__wrapped__(n, p)  # not kept: the probes' bases stay in the cache
         m = np.arange(n)
         j = np.arange(n - p - 1)[:, None]
         green = np.where(m >= j + p + 1, comb(m - j - 1, p), 0.0)  # (n − p − 1, n)
@@ -78,16 +80,6 @@ def constants(size: int, p: int) -> tuple[float, float]:
             lead = float(np.abs(green @ np.linalg.pinv(np.vander(t, 4, increasing=True))[3]).sum())
         best = (max(best[0], c), max(best[1], lead))
     return best[0] * (1.0 + 1e-9), best[1] * (1.0 + 1e-9)
-
-
-def query_residual(q: np.ndarray, p: int) -> float:
-    """‖(I − P_p) q‖ of the piece's K samples, less a margin for round-off."""
-    k, d = q.shape
-    basis = _projector(k, p)
-    qc = q - q.mean(axis=0)
-    res = qc - basis @ (basis.T @ qc)
-    margin = _U * float(np.abs(q).max()) * math.sqrt(k * d)
-    return max(float(np.sqrt(np.einsum("kd,kd->", res, res))) - margin, 0.0)
 
 
 class DiffRoughness:
@@ -135,13 +127,7 @@ class DiffRoughness:
              p: int) -> list[tuple[float, float, np.ndarray, np.ndarray]]:  # fmt: skip
         """(h0, h1, inside R_j, every window's R_j) of each bin [h0, h1] of :mod:`._rough`'s
         grid that h in [h_lo, h_hi] falls in, lowest first, for K = ``k`` and degree ``p``."""
-        b0 = math.floor(_BINS * math.log2(h_lo / _SHIFT) + _EDGE)
-        b1 = max(math.ceil(_BINS * math.log2(h_hi / _SHIFT) - _EDGE), b0 + 1)
-        out = []
-        for b in range(b0, b1):
-            h0, h1 = _SHIFT * 2.0 ** (b / _BINS), _SHIFT * 2.0 ** ((b + 1) / _BINS)
-            out.append((h0, h1, *self._bin(k, h0, h1, p)))
-        return out
+        return [(h0, h1, *self._bin(k, h0, h1, p)) for _, h0, h1 in bin_edges(h_lo, h_hi)]
 
     def bound(self, k: int, h_lo: float, h_hi: float, p: int) -> tuple[np.ndarray, np.ndarray]:
         """(inside, every window) R_j of every primitive over h in [h_lo, h_hi]: the largest
@@ -181,7 +167,7 @@ def diff_scales(table: DiffRoughness, q: np.ndarray, steps: float,
     lo, hi = time_scale
     keep = None  # (2, bins, k): inside, every
     for p in _DEGREES:
-        rq = query_residual(q, p)
+        rq = query_roughness(q, p)
         if rq < eps * math.sqrt(k):
             continue
         bins = table.bins(k, lo * per, hi * per, p)
@@ -190,15 +176,9 @@ def diff_scales(table: DiffRoughness, q: np.ndarray, steps: float,
         keep = kept if keep is None else keep & kept
     if keep is None:
         return None
-    h0 = np.array([b[0] for b in bins]) * (1.0 - 1e-9)
-    h1 = np.array([b[1] for b in bins]) * (1.0 + 1e-9)
-    out = []
-    for part in keep:  # each primitive's first and last bin kept, as in _rough.rough_scales
-        first, last = part.argmax(axis=0), part.shape[0] - 1 - part[::-1].argmax(axis=0)
-        none = ~part.any(axis=0)
-        out += [np.where(none, np.inf, np.maximum(h0[first] / per, lo)),
-                np.where(none, -np.inf, np.minimum(h1[last] / per, hi))]  # fmt: skip
-    return tuple(out)
+    edges = [b[:2] for b in bins]
+    return (*scales_kept(keep[0], edges, per, time_scale),
+            *scales_kept(keep[1], edges, per, time_scale))  # fmt: skip
 
 
 def _largest_differences(points: np.ndarray, offsets: np.ndarray) -> dict[int, np.ndarray]:
