@@ -215,17 +215,18 @@ class _Segmenter:
         kc = self.path.confirm_points(a, b)
         q = self.path.at(np.linspace(a, b, kc))
         table, ts = self.bank.roughness(), self.opts.time_scale
-        if isinstance(table, DiffRoughness):  # a large bank: R_j from the differences
+        large = isinstance(table, DiffRoughness)  # R_j from the differences, no tight table
+        if large:
             sc = diff_scales(table, q, steps, ts, self.eps)
             # a primitive with no time scale left: none of its windows within eps
-            rough, table = (None if sc is None else np.where(sc[2] > sc[3], np.inf, 0.0)), None
+            rough = None if sc is None else np.where(sc[2] > sc[3], np.inf, 0.0)
         else:
             rough = rough_bounds(table, q, steps, ts, self.eps)
         if rejects(env, q, steps, low, self.opts.rotation, self.eps, rough) or (
             # a shortest probe also by the tighter R_j (._rough_tight): its failure is all the
             # segmentation takes from it (none of its seeds is shrunk below the minimum, nor
             # kept for a later start), so rejected or searched, the answer is the same
-            rough is not None and table is not None and kc - 1 == self.least
+            rough is not None and not large and kc - 1 == self.least
             and rejects(env, q, steps, low, self.opts.rotation, self.eps,
                         rough_bounds(table, q, steps, ts, self.eps, tight=True))
         ):  # fmt: skip
