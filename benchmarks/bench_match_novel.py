@@ -133,12 +133,11 @@ def worker(spec: dict) -> dict:
             n = spec["samples"]
             if spec.get("file"):  # one stored path, timed ``paths`` times
                 path = Trajectory.from_csv(ROOT / spec["file"])
-                n = int(round(path.duration / dt)) + 1
             elif spec.get("as_stored"):  # stored pieces as stored: the restrictions hold
                 path = _as_stored(bank, np.random.default_rng(300 + seed), n, dt)
-                n = int(round(path.duration / dt)) + 1
             else:
                 path = _walk(np.random.default_rng(100 + seed), n, dt, max(8, n // 200))
+            n = int(round(path.duration / dt)) + 1  # a file's own length (a walk's is n)
             pts = path.at(np.linspace(0.0, 1.0, n))
             eps = default_eps(path)
             if spec.get("noise"):  # white noise; eps a multiple of its RMS (NOISE_EPS)
