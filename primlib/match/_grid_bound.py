@@ -36,6 +36,23 @@ is constant there: no faster). With s a divisor of K − 1, the anchor windows' 
 (js + K − 1)h are anchor starts too: one resampled point in s·h per primitive gives every
 anchor's chord (:func:`anchor_values`).
 
+Block bound. On the interval i, |P(x) − p_i| ≤ Λ_i (the speed bound above over at most one
+sample), so P over the intervals of a block of W consecutive ones (numbered through the whole
+bank) lies in the box [min (p_i − Λ_i), max (p_i + Λ_i)] per axis (:func:`block_boxes`). A
+window's computed start m·h lies on the interval i0 = ⌊m·h⌋ and its
+computed end, D later up to round-off, on i1 with i1 − i0 ∈ [⌊D⌋ − 1, ⌊D⌋ + 1] (P at an
+integer x is p_x, in the box of x's own block, also at a primitive's last sample): from the
+block X of i0 the end lies in the blocks X + ⌊(⌊D⌋ − 1)/W⌋ to X + 1 + ⌊⌊D⌋/W⌋, and the chord
+in the box difference E − B_X (E those blocks' union, :func:`chord_boxes`), whose distance
+from c_q (``"none"``) or the distance of |c_q| from the box's range of lengths (``"full"``;
+``"z"`` too, whose g is at least the full family's) is at or below g(c_w)
+(:func:`box_gaps`). Neighbouring blocks' boxes touch (the interpolant is continuous), so
+the end's blocks must be 2 or more on: the search takes W at or below (⌊D⌋ − 1)/3, the end
+3 to 7 blocks on, and a union over all of 3 to 7 (a wider box, a smaller gap) screens the
+blocks first (:func:`chord_radii`, kept per W). A block of starts is then proven out of a
+limit with one bound, before anything of it is resampled (a block may straddle two
+primitives: its box holds both, a bound all the same).
+
 A window is dropped only when its bound exceeds its gate (it cannot be a candidate) or the
 scale's ``top``-th best RMSD found so far (:class:`Best`: it cannot be among the scale's
 best, which are all the search keeps of a scale), each with a margin for round-off
@@ -55,6 +72,13 @@ __all__ = [
     "anchor_values",
     "stretch_bounds",
     "beyond",
+    "block_boxes",
+    "below32",
+    "above32",
+    "chord_boxes",
+    "chord_boxes_at",
+    "chord_radii",
+    "box_gaps",
     "Best",
 ]
 
@@ -120,6 +144,96 @@ def stretch_bounds(values: np.ndarray, n_stretch: np.ndarray, reach: np.ndarray,
     left = np.delete(np.arange(values.size), ends - 1)  # every value but each one's last
     mean = 0.5 * (values[left] + values[left + 1]) - reach
     return np.maximum(mean, values[left] - reach * (2.0 * (s - 1) / s))
+
+
+def block_boxes(points: np.ndarray, speeds: np.ndarray, width: int,
+                chunk: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Per block of ``width`` consecutive intervals of the bank (the last one shorter), the
+    box that holds the interpolant over them: the least p_i − Λ_i and the greatest p_i + Λ_i
+    per axis (``speeds`` Λ_i, :func:`speed_bounds`; module notes), in float32 rounded
+    outwards (a box that holds the float64 one; half the memory). ``chunk`` blocks at a time.
+    Shapes (⌈N/width⌉, d)."""
+    n, d = points.shape
+    nb = -(-n // width)
+    lo, hi = np.empty((nb, d), np.float32), np.empty((nb, d), np.float32)
+    for b0 in range(0, nb, chunk):
+        b1 = min(nb, b0 + chunk)
+        i0, i1 = b0 * width, min(n, b1 * width)
+        p, v = points[i0:i1], speeds[i0:i1, None]
+        pad = (b1 - b0) * width - (i1 - i0)  # the last block's missing intervals: its last
+        low = np.concatenate([p - v, np.repeat(p[-1:] - v[-1:], pad, axis=0)])
+        high = np.concatenate([p + v, np.repeat(p[-1:] + v[-1:], pad, axis=0)])
+        lo[b0:b1] = below32(low.reshape(-1, width, d).min(axis=1))
+        hi[b0:b1] = above32(high.reshape(-1, width, d).max(axis=1))
+    return lo, hi
+
+
+def below32(x: np.ndarray) -> np.ndarray:
+    """float32 values at or below the float64 ``x``."""
+    y = x.astype(np.float32)
+    above = y.astype(np.float64) > x
+    y[above] = np.nextafter(y[above], np.float32(-np.inf))
+    return y
+
+
+def above32(x: np.ndarray) -> np.ndarray:
+    """float32 values at or above the float64 ``x``."""
+    y = x.astype(np.float32)
+    below = y.astype(np.float64) < x
+    y[below] = np.nextafter(y[below], np.float32(np.inf))
+    return y
+
+
+def chord_boxes(lo: np.ndarray, hi: np.ndarray, first: int, last: int, start: int = 0,
+                stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Per block X in [``start``, ``stop``), the box of the chords from a point of block X to
+    one of the blocks X + ``first`` .. X + ``last``: their union's box less X's, in float64
+    (+inf / -inf where none of those blocks is in the bank: no chord)."""
+    nb, d = lo.shape
+    stop = nb if stop is None else stop
+    end_lo, end_hi = np.full((stop - start, d), np.inf), np.full((stop - start, d), -np.inf)
+    for off in range(first, last + 1):  # slices: X reads X + off
+        a, b = max(start, -off), min(stop, nb - off)
+        if b > a:
+            np.minimum(end_lo[a - start : b - start], lo[a + off : b + off],
+                       out=end_lo[a - start : b - start])  # fmt: skip
+            np.maximum(end_hi[a - start : b - start], hi[a + off : b + off],
+                       out=end_hi[a - start : b - start])  # fmt: skip
+    return end_lo - hi[start:stop], end_hi - lo[start:stop]
+
+
+def chord_boxes_at(lo: np.ndarray, hi: np.ndarray, first: int, last: int,
+                   rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """:func:`chord_boxes` of the blocks ``rows`` alone (gathered)."""
+    nb = lo.shape[0]
+    y = rows[:, None] + np.arange(first, last + 1)
+    inside = ((y >= 0) & (y < nb))[..., None]
+    y = np.clip(y, 0, nb - 1)
+    end_lo = np.where(inside, lo[y], np.inf).min(axis=1)
+    end_hi = np.where(inside, hi[y], -np.inf).max(axis=1)
+    return end_lo - hi[rows].astype(np.float64), end_hi - lo[rows].astype(np.float64)
+
+
+def chord_radii(c_lo: np.ndarray, c_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least and greatest length of a chord in each box of :func:`chord_boxes`."""
+    near = np.maximum(np.maximum(c_lo, -c_hi), 0.0)
+    far = np.maximum(np.abs(c_lo), np.abs(c_hi))
+    return np.sqrt(np.einsum("ij,ij->i", near, near)), np.sqrt(np.einsum("ij,ij->i", far, far))
+
+
+def box_gaps(c_lo: np.ndarray, c_hi: np.ndarray, q_chord: np.ndarray,
+             rotation: str) -> np.ndarray:  # fmt: skip
+    """A lower bound on g(c) (:func:`endpoint_gap`) over the chords c of each box: its
+    distance from c_q (``"none"``), or that of |c_q| from the box's range of lengths
+    (``"full"``; ``"z"`` too, whose g is at least the full family's); inf for no chord."""
+    if rotation == "none":
+        off = np.maximum(np.maximum(c_lo - q_chord, q_chord - c_hi), 0.0)
+        gap = np.sqrt(np.einsum("ij,ij->i", off, off))
+    else:
+        near, far = chord_radii(c_lo, c_hi)
+        length = float(np.linalg.norm(q_chord))
+        gap = np.maximum(np.maximum(near - length, length - far), 0.0)
+    return np.where(np.isnan(gap), np.inf, gap)
 
 
 def beyond(bound: np.ndarray, limit: np.ndarray | float, rg_q: float, slack: float) -> np.ndarray:

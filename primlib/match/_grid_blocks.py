@@ -1,0 +1,235 @@
+"""Blocks of the time-uniform grid's window starts (:class:`._grid.GridSearch`): one lower
+bound a block, before any of its windows is resampled, and the windows of a set of blocks
+as runs.
+
+A scale of the grid has a window at every start m·h of every primitive long enough: on 1,000
+primitives of 2,000 samples up to 7 million at the shortest durations. The stretches of
+:mod:`._grid_bound` bound them s at a time from P resampled at every s-th grid point, the
+whole bank each scale (~10-30 ms), and under a tight limit nearly all of that is wasted: a
+piece at rest (a path that stops) is matched only by the bank's stillest windows. Here the
+intervals of the bank are cut in blocks of W and each block's box holds P over it
+(:func:`._grid_bound.block_boxes`), so the chords of the windows that start in a block lie
+in one box difference and one bound covers them all (:func:`._grid_bound.box_gaps`; module
+notes of :mod:`._grid_bound`, *Block bound*). W is the power of 2 at or below (⌊D⌋ − 1)/3,
+so that a window ends 3 to 7 blocks on (neighbouring boxes touch: a chord to the next block
+may be 0): a block's bound is within about two blocks' motion of the chords' own. Scales of
+windows shorter than 7 samples (W would be 1) are searched whole: their blocks would hold
+as many bytes as the bank and bound little. The boxes and chord ranges are kept in float32
+rounded outwards (~12 and 8 bytes a block; on 1,000 primitives of 2,000 samples ~64 MB in
+all, formed a chunk of blocks at a time).
+
+:class:`StartBlocks` gives a scale's blocks not beyond a limit and their bounds, first by
+one comparison a block against the chords' length range to the blocks 3 to 7 on (kept per
+W, ~16 bytes a block), then, on the blocks that leave, by the box of this duration's 3.
+:func:`runs` turns a set of blocks into the runs of windows m0, ..., m0 + n − 1 that start
+in them, by the computed m·h every resampling takes, so that every window is in exactly one
+block and disjoint sets of blocks never share a window (:func:`without`: a scale less some
+runs). The grid searches a scale's 64 blocks of the smallest bounds first, then the others
+not beyond the limit that leaves (``GridSearch._scale_seeds``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from primlib.match._grid_bound import (
+    above32,
+    below32,
+    beyond,
+    block_boxes,
+    box_gaps,
+    chord_boxes,
+    chord_boxes_at,
+    chord_radii,
+)
+
+__all__ = ["Scale", "StartBlocks", "runs", "without"]
+
+_GATHER = 16  # blocks (1 / this of them, at most) whose boxes are gathered, not sliced
+_CHUNK = 1 << 16  # blocks whose chords' boxes are formed at a time (bounded memory)
+
+
+@dataclass(frozen=True)
+class Scale:
+    """One time scale of the grid: the primitives long enough (``prim``), their window
+    counts, the duration D and stride h (samples), the cell half-width c, and the stretch of
+    intervals a window's slack takes, [j − back, j − back + size) for a start in [j, j + 1)
+    (``GridSearch._local_speeds``). With ``m0``, runs of windows m0, ..., m0 + n_start − 1 of
+    the primitives ``prim`` (one may have several: :func:`runs`)."""
+
+    prim: np.ndarray
+    n_start: np.ndarray
+    dur: float
+    h: float
+    cell: float
+    m0: np.ndarray | None = None
+
+    def first(self) -> np.ndarray:
+        """Each run's first window (0: every window of its primitive)."""
+        return np.zeros_like(self.n_start) if self.m0 is None else self.m0
+
+    @property
+    def back(self) -> int:
+        return math.ceil(self.cell) + 1
+
+    @property
+    def size(self) -> int:
+        return self.back + math.ceil(self.dur) + math.ceil(self.cell) + 3
+
+
+@dataclass
+class StartBlocks:
+    """The bank's blocks of starts, their boxes and chord ranges kept per width W.
+
+    Parameters
+    ----------
+    points, speeds : arrays
+        The bank's samples and each interval's speed bound Λ_i
+        (:func:`._grid_bound.speed_bounds`).
+    """
+
+    points: np.ndarray
+    speeds: np.ndarray
+    _box: dict = field(default_factory=dict, init=False, repr=False)
+    _radius: dict = field(default_factory=dict, init=False, repr=False)
+
+    @staticmethod
+    def width(dur: float) -> int | None:
+        """W for windows of duration ``dur`` samples (None below 7: blocks of one interval
+        would hold as many bytes as the bank for the shortest windows, where a block's box
+        holds nearly as much motion as the chord)."""
+        fd = math.floor(dur)
+        return None if fd < 7 else 1 << int(math.log2((fd - 1) / 3.0))
+
+    def bounds(self, dur: float, q_chord: np.ndarray, rotation: str, k: int, limit: float,
+               rg_q: float, slack: float) -> tuple[int, np.ndarray, np.ndarray]:  # fmt: skip
+        """For windows of duration ``dur`` (7 samples or more) and K = ``k`` points: W, the
+        blocks whose bound on ρ is not beyond ``limit`` (:func:`._grid_bound.beyond`) and
+        those bounds.
+
+        Every block's bound is first that of its chords to the blocks 3 to 7 on (their
+        lengths' range, :meth:`radii`: one comparison a block); the blocks it leaves take
+        the larger of it and :func:`._grid_bound.box_gaps` of their chords to the 3 blocks
+        a window of this duration ends in (and their directions, under ``"none"``). Both
+        are over √(2K), bounds on ρ as the stretches' are (ρ ≥ g(c_w)/√(2K))."""
+        fd = math.floor(dur)
+        width = self.width(dur)
+        near, far = self.radii(width)
+        root = math.sqrt(2.0 * k)
+        length = float(np.linalg.norm(q_chord))
+        wide = near.astype(np.float64) - length
+        if length > 0.0:
+            np.maximum(wide, length - far.astype(np.float64), out=wide)
+        np.maximum(wide, 0.0, out=wide)
+        wide /= root
+        live = np.flatnonzero(~beyond(wide, limit, rg_q, slack))
+        lo, hi = self.boxes(width)
+        ends = ((fd - 1) // width, 1 + fd // width)
+        if live.size <= wide.size // _GATHER:
+            gap = box_gaps(*chord_boxes_at(lo, hi, *ends, live), q_chord, rotation)
+        else:  # many: by slices, a chunk of blocks at a time
+            gap = np.empty(live.size)
+            cuts = np.searchsorted(live, np.arange(0, wide.size + _CHUNK, _CHUNK))
+            for j, (c0, c1) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
+                if c1 > c0:
+                    start = j * _CHUNK
+                    c_lo, c_hi = chord_boxes(lo, hi, *ends, start, min(start + _CHUNK, wide.size))
+                    at = live[c0:c1] - start
+                    gap[c0:c1] = box_gaps(c_lo[at], c_hi[at], q_chord, rotation)
+        bound = np.maximum(gap / root, wide[live])
+        keep = ~beyond(bound, limit, rg_q, slack)
+        return width, live[keep], bound[keep]
+
+    def radii(self, width: int) -> tuple[np.ndarray, np.ndarray]:
+        """Per block of ``width`` intervals, the least and greatest chord length to the
+        blocks 3 to 7 on (:func:`._grid_bound.chord_radii`), in float32 rounded down and up,
+        kept."""
+        if width not in self._radius:
+            lo, hi = self.boxes(width)
+            nb = lo.shape[0]
+            near, far = np.empty(nb, np.float32), np.empty(nb, np.float32)
+            for start in range(0, nb, _CHUNK):
+                stop = min(nb, start + _CHUNK)
+                n64, f64 = chord_radii(*chord_boxes(lo, hi, 3, 7, start, stop))
+                near[start:stop], far[start:stop] = below32(n64), above32(f64)
+            self._radius[width] = near, far
+        return self._radius[width]
+
+    def boxes(self, width: int) -> tuple[np.ndarray, np.ndarray]:
+        """The boxes of blocks of ``width`` intervals (:func:`._grid_bound.block_boxes`),
+        kept."""
+        if width not in self._box:
+            self._box[width] = block_boxes(self.points, self.speeds, width)
+        return self._box[width]
+
+
+def runs(live: np.ndarray, width: int, offsets: np.ndarray, sc: Scale) -> Scale | None:
+    """The windows of scale ``sc`` that start on the intervals of the blocks ``live`` (of
+    ``width`` intervals through the bank, distinct), as runs per primitive (a
+    :class:`Scale` with ``m0``; None if none).
+
+    A block holds the end of one primitive and the start of the next at most where either
+    has windows (W <= D/2 is shorter than a primitive holding one; one wholly inside a block
+    holds none). Its intervals [i0, i1) of primitive p (offset o) hold the windows m whose
+    computed start m·h (the float every resampling takes) has ⌊m·h⌋ in [i0 − o, i1 − o):
+    each window is in exactly one block, so the runs of disjoint sets of blocks never share
+    a window. Runs that touch are merged.
+    """
+    row = np.full(offsets.size - 1, -1)
+    row[sc.prim] = np.arange(sc.prim.size)  # each primitive's row in the scale (-1: none)
+    b0 = live * width
+    b1 = b0 + width
+    first = np.searchsorted(offsets, b0, side="right") - 1
+    last = np.minimum(np.searchsorted(offsets, b1 - 1, side="right"), offsets.size - 1) - 1
+    two = last != first
+    p = np.concatenate([first, last[two]])
+    b0, b1 = np.concatenate([b0, b0[two]]), np.concatenate([b1, b1[two]])
+    keep = row[p] >= 0
+    p, b0, b1 = p[keep], b0[keep], b1[keep]
+    o = offsets[p]
+    n = sc.n_start[row[p]]
+    m_lo = np.minimum(_first_at(np.maximum(b0, o) - o, sc.h), n)
+    m_hi = np.minimum(_first_at(np.minimum(b1, offsets[p + 1]) - o, sc.h), n)
+    ok = m_hi > m_lo
+    p, m_lo, m_hi = p[ok], m_lo[ok], m_hi[ok]
+    if p.size == 0:
+        return None
+    order = np.lexsort((m_lo, p))
+    p, m_lo, m_hi = p[order], m_lo[order], m_hi[order]
+    new = np.ones(p.size, dtype=bool)
+    new[1:] = (p[1:] != p[:-1]) | (m_lo[1:] != m_hi[:-1])  # disjoint: merged where they touch
+    at = np.flatnonzero(new)
+    end = np.append(at[1:], p.size) - 1
+    return Scale(p[at], m_hi[end] - m_lo[at], sc.dur, sc.h, sc.cell, m_lo[at])
+
+
+def _first_at(i: np.ndarray, h: float) -> np.ndarray:
+    """The least window m >= 0 whose computed start m·h is at or past the integer i."""
+    m = np.maximum(np.ceil(i / h).astype(np.int64), 0)
+    m = np.where((m > 0) & ((m - 1) * h >= i), m - 1, m)  # i / h rounded up one too many
+    return np.where(m * h < i, m + 1, m)
+
+
+def without(sc: Scale, taken: Scale | None) -> Scale:
+    """The windows of the whole scale ``sc`` (``m0`` None) but those of ``taken`` (sorted by
+    primitive and start, disjoint, as :func:`runs` gives them), as runs."""
+    if taken is None:
+        return sc
+    row = np.searchsorted(sc.prim, taken.prim)  # sc.prim is increasing
+    end = taken.m0 + taken.n_start
+    same = np.zeros(row.size, dtype=bool)
+    same[1:] = row[1:] == row[:-1]
+    before = np.where(same, np.roll(end, 1), 0)  # each run's gap before it: [before, m0)
+    last = np.zeros(sc.prim.size, dtype=np.int64)
+    last[row] = end  # the last run's end per primitive (runs in order: the last write wins)
+    lo = np.concatenate([before, last])
+    hi = np.concatenate([taken.m0, sc.n_start])
+    r = np.concatenate([row, np.arange(sc.prim.size)])
+    ok = hi > lo
+    lo, hi, r = lo[ok], hi[ok], r[ok]
+    order = np.lexsort((lo, r))
+    lo, hi, r = lo[order], hi[order], r[order]
+    return Scale(sc.prim[r], hi - lo, sc.dur, sc.h, sc.cell, lo)

@@ -1,0 +1,209 @@
+"""The grid's blocks of starts and caps across scales (``_grid``, ``_grid_bound``): a block's
+bound is below every window that starts in it, blocks split the windows exactly, and the
+search under caps and blocks returns the seeds (and the segmentation) of the search without."""
+
+import math
+
+import numpy as np
+import pytest
+
+from primlib.match import BankIndex, segment_path
+from primlib.match._grid import GridSearch, _Query
+from primlib.match._grid_blocks import Scale, runs, without
+from primlib.match._grid_bound import (
+    above32,
+    below32,
+    block_boxes,
+    box_gaps,
+    chord_boxes,
+    chord_boxes_at,
+    chord_radii,
+    endpoint_gap,
+    speed_bounds,
+)
+from primlib.match._interp import cubic_at
+from primlib.match._options import PathPiece, SearchOptions
+from primlib.store import Bank
+
+DT = 0.01
+K = 16
+
+
+def _walk(rng, n: int, speed: float, stop: bool = False) -> np.ndarray:
+    """A smooth random 3-D curve of n samples moving ~``speed`` a sample; with ``stop``, at
+    rest over its middle third."""
+    v = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    w = min(9, n)
+    v = np.apply_along_axis(lambda c: np.convolve(c, np.ones(w) / w, "same"), 0, v)
+    v /= np.linalg.norm(v, axis=1, keepdims=True) + 1e-12
+    pace = np.full((n, 1), speed)
+    if stop:
+        pace[n // 3 : 2 * n // 3] = 0.0
+    return np.cumsum(v * pace, axis=0) + rng.normal(size=3) * 20.0
+
+
+def _bank(rng, k: int = 6, n: int = 400) -> BankIndex:
+    """Primitives at several speeds, every third at rest a while, and one of 3 samples."""
+    prims = [_walk(rng, n, rng.uniform(0.02, 0.3), stop=i % 3 == 0) for i in range(k)]
+    prims.append(_walk(rng, 3, 0.1))
+    return BankIndex(Bank.from_samples(prims, DT))
+
+
+def _windows(bank: BankIndex, sc: Scale) -> tuple[np.ndarray, np.ndarray]:
+    """Every window of a whole scale: its primitive and index m."""
+    prim = np.repeat(sc.prim, sc.n_start)
+    m = np.concatenate([np.arange(n) for n in sc.n_start])
+    return prim, m
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+def test_a_blocks_bounds_are_below_every_window_that_starts_in_it(rotation):
+    rng = np.random.default_rng(11)
+    bank = _bank(rng)
+    speeds = speed_bounds(bank.points, bank.offsets)
+    root = math.sqrt(2 * K)
+    for trial in range(12):
+        q_chord = np.zeros(3) if trial % 3 == 0 else rng.normal(size=3) * rng.uniform(0.1, 3)
+        dq = rng.uniform(6.0, 120.0)
+        grid = GridSearch(bank, SearchOptions(rotation=rotation))
+        path = PathPiece(np.zeros((2, 3)), dq * DT)
+        for sc in grid._scales(path, 0.0, 1.0):
+            fd = math.floor(sc.dur)
+            if fd < 7:
+                continue
+            width = 1 << int(math.log2((fd - 1) / 3.0))
+            lo, hi = block_boxes(bank.points, speeds, width, chunk=7)  # chunks: the same
+            span = ((fd - 1) // width, 1 + fd // width)  # the blocks a window ends in
+            exact = box_gaps(*chord_boxes(lo, hi, *span), q_chord, rotation) / root
+            rows = np.arange(0, lo.shape[0], 3)
+            np.testing.assert_array_equal(
+                box_gaps(*chord_boxes_at(lo, hi, *span, rows), q_chord, rotation) / root,
+                exact[rows],
+            )
+            near, far = chord_radii(*chord_boxes(lo, hi, 3, 7))
+            length = np.linalg.norm(q_chord)
+            wide = np.maximum(np.maximum(near - length, length - far), 0.0) / root
+            prim, m = _windows(bank, sc)
+            x0 = m * sc.h
+            starts = cubic_at(bank.points, bank.offsets[prim], bank.counts[prim], x0)
+            ends = cubic_at(bank.points, bank.offsets[prim], bank.counts[prim],
+                            (m + K - 1) * sc.h)  # fmt: skip
+            g = endpoint_gap(ends - starts, q_chord, rotation) / root
+            block = (bank.offsets[prim] + np.floor(x0).astype(int)) // width
+            assert np.all(g >= exact[block] - 1e-12)
+            assert np.all(exact >= wide - 1e-12)  # the wider union: the smaller bound
+            # and _blocks_of, with no cap, keeps every block with a bound at least as large
+            grid.few = 0
+            query = _Query(np.zeros((K, 3)), 0.0, 0.0, q_chord, float(np.abs(q_chord).max()))
+            _, live, bound = grid._blocks_of(sc, query, math.inf, 0.0)
+            assert live.tolist() == list(range(near.size))
+            assert np.all(g >= bound[block] - 1e-12)
+
+
+def test_float32_boxes_and_ranges_round_outwards():
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=10_000) * 10.0 ** rng.uniform(-6, 6, 10_000)
+    assert np.all(below32(x).astype(np.float64) <= x)
+    assert np.all(above32(x).astype(np.float64) >= x)
+    assert np.all(above32(x) - below32(x) <= 2 * np.spacing(np.abs(x).astype(np.float32)))
+    pts, speeds = rng.normal(size=(103, 3)), rng.uniform(0, 0.1, 103)
+    lo, hi = block_boxes(pts, speeds, 4)
+    assert lo.shape == hi.shape == (26, 3) and lo.dtype == np.float32
+    for b in range(26):
+        i = slice(4 * b, min(103, 4 * b + 4))
+        assert np.all(lo[b] <= (pts[i] - speeds[i, None]).min(axis=0))
+        assert np.all(hi[b] >= (pts[i] + speeds[i, None]).max(axis=0))
+
+
+def test_the_runs_of_a_set_of_blocks_hold_each_of_their_windows_once():
+    rng = np.random.default_rng(3)
+    bank = _bank(rng, k=5, n=300)
+    grid = GridSearch(bank, SearchOptions())
+    for dq in (6.0, 13.0, 40.0):
+        for sc in list(grid._scales(PathPiece(np.zeros((2, 3)), dq * DT), 0.0, 1.0))[::5]:
+            width = 1 << int(rng.integers(0, 4))
+            prim, m = _windows(bank, sc)
+            block = (bank.offsets[prim] + np.floor(m * sc.h).astype(int)) // width
+            n_blocks = -(-bank.points.shape[0] // width)
+            parts = np.array_split(rng.permutation(n_blocks), 3)
+            seen = []
+            for part in parts:
+                got = runs(part, width, bank.offsets, sc)
+                if got is None:
+                    continue
+                for p, a, n in zip(got.prim, got.first(), got.n_start, strict=True):
+                    seen += [(p, w) for w in range(a, a + n)]
+                    assert np.all(np.isin(block[(prim == p) & (m >= a) & (m < a + n)], part))
+            assert sorted(seen) == sorted(zip(prim.tolist(), m.tolist(), strict=True))
+
+
+def test_a_scale_without_some_runs_holds_every_other_window_once():
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        k = int(rng.integers(1, 6))
+        prim = np.sort(rng.choice(20, k, replace=False))
+        n = rng.integers(1, 30, k)
+        sc = Scale(prim, n, 5.0, 0.3, 1.0)
+        runs = []
+        for p, c in zip(prim, n, strict=True):
+            cuts = np.sort(rng.choice(c + 1, min(c + 1, 2 * int(rng.integers(0, 3))) // 2 * 2,
+                                      replace=False))  # fmt: skip
+            runs += [(p, a, b) for a, b in zip(cuts[0::2], cuts[1::2], strict=True) if b > a]
+        taken = None
+        if runs:
+            p, a, b = map(np.array, zip(*runs, strict=True))
+            taken = Scale(p, b - a, 5.0, 0.3, 1.0, a)
+        rest = without(sc, taken)
+        every = {(p, w) for p, c in zip(prim, n, strict=True) for w in range(c)}
+        out = {(p, w) for p, a, b in runs for w in range(a, b)}
+        got = [(p, w) for p, a, c in zip(rest.prim, rest.first(), rest.n_start, strict=True)
+               for w in range(a, a + c)]  # fmt: skip
+        assert len(got) == len(set(got)) and set(got) == every - out
+
+
+def _plain(monkeypatch) -> None:
+    """The grid without blocks or caps, as before them."""
+    monkeypatch.setattr(GridSearch, "_blocks_of", lambda self, *a: None)
+    pooled = GridSearch._pooled
+    monkeypatch.setattr(GridSearch, "_pooled",
+                        lambda self, *a, capped: pooled(self, *a, capped=False))  # fmt: skip
+
+
+@pytest.mark.parametrize("rotation", ["full", "z", "none"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_blocks_and_caps_return_the_seeds_of_the_plain_grid(rotation, seed, monkeypatch):
+    rng = np.random.default_rng(40 + seed)
+    bank = _bank(rng)
+    opts = SearchOptions(rotation=rotation)
+    pieces = [
+        PathPiece(np.zeros((30, 3)) + rng.normal(size=3), 29 * DT),  # at rest
+        PathPiece(_walk(rng, 40, 0.01), 39 * DT),  # slow
+        PathPiece(bank.points[bank.offsets[1] + 50 : bank.offsets[1] + 90], 39 * DT),  # stored
+    ]
+    got = []
+    for piece in pieces:
+        grid = GridSearch(bank, opts)
+        grid.few = 0  # blocks on every scale
+        got.append([(c.prim, c.x0, c.x1, c.score) for c in grid.seeds(piece, 0.0, 1.0, 0.05)])
+    _plain(monkeypatch)
+    for piece, seeds in zip(pieces, got, strict=True):
+        grid = GridSearch(bank, opts)
+        want = [(c.prim, c.x0, c.x1, c.score) for c in grid.seeds(piece, 0.0, 1.0, 0.05)]
+        assert [s[:3] for s in seeds] == [w[:3] for w in want]
+        # an RMSD from moments may differ in its last bits with the batch it was scored in
+        np.testing.assert_allclose([s[3] for s in seeds], [w[3] for w in want], rtol=1e-9,
+                                   atol=1e-12)  # fmt: skip
+
+
+def test_a_path_that_stops_is_cut_as_by_the_plain_grid(monkeypatch):
+    # a path at rest for a while: its pieces at rest go to the grid (too short in arc length
+    # to index); blocks and caps change what the grid scores, not the segmentation
+    rng = np.random.default_rng(5)
+    bank = _bank(rng, k=8)
+    pts = _walk(rng, 500, 0.1, stop=True)
+    monkeypatch.setattr(GridSearch, "few", 0)
+    got, _ = segment_path(bank, pts, DT, 0.05)
+    _plain(monkeypatch)
+    want, _ = segment_path(bank, pts, DT, 0.05)
+    assert [(s.end, s.primitive) for s in got] == [(s.end, s.primitive) for s in want]
+    assert any(s.primitive is not None for s in got)
