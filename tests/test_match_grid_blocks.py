@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from primlib.match import BankIndex, segment_path
-from primlib.match._grid import GridSearch, _Query
+from primlib.match._grid import GridSearch, _coefficient_table, _coefficients_at, _Query
 from primlib.match._grid_blocks import Scale, runs, without
 from primlib.match._grid_bound import (
     above32,
@@ -159,6 +159,19 @@ def test_a_scale_without_some_runs_holds_every_other_window_once():
         got = [(p, w) for p, a, c in zip(rest.prim, rest.first(), rest.n_start, strict=True)
                for w in range(a, a + c)]  # fmt: skip
         assert len(got) == len(set(got)) and set(got) == every - out
+
+
+def test_coefficients_formed_from_neighbours_are_the_tables_to_the_bit():
+    rng = np.random.default_rng(0)
+    counts = np.array([2, 3, 5, 40, 2, 17])
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    pts = rng.normal(size=(offsets[-1], 3)) * 1e3
+    table = _coefficient_table(pts, offsets)
+    prim = rng.integers(0, counts.size, 500)
+    i = np.array([rng.integers(0, counts[p] - 1) for p in prim])
+    rows = offsets[prim] + i
+    for got, want in zip(_coefficients_at(pts, rows, i, counts[prim]), table, strict=True):
+        assert np.array_equal(got, want[rows])
 
 
 def _plain(monkeypatch) -> None:

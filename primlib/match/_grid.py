@@ -78,6 +78,7 @@ from primlib.match._pool import suppress
 __all__ = ["GridSearch", "scale_grid"]
 
 _HEAD = 64  # blocks of the smallest bounds searched first on a scale (GridSearch._scale_seeds)
+_TABLE = 8  # a resampling of more than 1/_TABLE of the bank's samples builds the table
 
 
 def scale_grid(lo: float, hi: float, ratio: float) -> np.ndarray:
@@ -124,6 +125,27 @@ def _coefficient_table(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     c3 += p3
     c3 -= p0
     return tab
+
+
+def _coefficients_at(points: np.ndarray, rows: np.ndarray, i: np.ndarray,
+                     count: np.ndarray) -> tuple[np.ndarray, ...]:  # fmt: skip
+    """The rows ``rows`` of :func:`_coefficient_table` (the interval i of a curve of
+    ``count`` samples each), formed from the neighbours gathered: p1 and c1, c2, c3 by the
+    same operations in the same order, so the same numbers to the last bit."""
+    p1 = points[rows]
+    p2 = points[rows + 1]
+    p0 = points[np.where(i > 0, rows - 1, rows)]  # a curve's first interval: p0 = p1
+    p3 = points[np.where(i < count - 2, rows + 2, rows + 1)]  # its last: p3 = p2
+    c1 = p2 - p0
+    c2 = p0 * 2.0
+    c2 -= 5.0 * p1
+    c2 += 4.0 * p2
+    c2 -= p3
+    c3 = p1 - p2
+    c3 *= 3.0
+    c3 += p3
+    c3 -= p0
+    return p1, c1, c2, c3
 
 
 @dataclass(frozen=True)
@@ -203,15 +225,22 @@ class GridSearch:
         """:func:`._interp.cubic_at` of primitives ``prim`` at sample indices ``x``, from a
         table of every interval's Catmull-Rom coefficients (:func:`_coefficient_table`,
         built on the first call, kept): no neighbour gathers and no coefficient arithmetic
-        per point, the same numbers to the last bit."""
-        if self._table is None:
-            self._table = _coefficient_table(self.bank.points, self.bank.offsets)
-        p1, c1, c2, c3 = self._table
+        per point, the same numbers to the last bit. Until a resampling of more than
+        1/``_TABLE`` of the bank's samples asks for the table, the coefficients of the
+        intervals read are formed from their neighbours (:func:`_coefficients_at`, the same
+        operations): searches that blocks and caps confine read a few thousand points."""
         count = self.bank.counts[prim]
         x = np.clip(x, 0.0, count - 1)
         i = np.minimum(np.floor(x).astype(np.int64), count - 2)
         f = (x - i)[:, None]
         rows = self.bank.offsets[prim] + i
+        if self._table is None and x.size * _TABLE <= self.bank.points.shape[0]:
+            p1, c1, c2, c3 = _coefficients_at(self.bank.points, rows, i, count)
+            rows = np.arange(rows.size)
+        else:
+            if self._table is None:
+                self._table = _coefficient_table(self.bank.points, self.bank.offsets)
+            p1, c1, c2, c3 = self._table
         # p1 + 0.5 f (c1 + f (c2 + f c3)), its operations in their order, in place, each
         # coefficient gathered contiguous (mode "clip": no buffer; rows are in range)
         val = np.take(c3, rows, axis=0, mode="clip")
