@@ -22,7 +22,8 @@ much.
 
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400]
 [--big [--big-cases CASE ...]] [--long] [--baseline REV | --no-baseline]
-[--cases default "rotation none" ...] [--glyph-chain] [--as-stored] [--shrink F] [--noise F]``;
+[--cases default "rotation none" ...] [--glyph-chain] [--as-stored] [--shrink F] [--noise F]
+[--rests]``;
 ``--glyph-chain`` times the cases on ``data/paths/glyph-chain.csv`` (the restricted
 searches of ``bench_match.py --restricted``) instead, beside the baseline; ``--shrink 1e-6``
 scales the novel paths (and eps) down until they barely move against the primitives.
@@ -39,6 +40,13 @@ whole search.
 RMS (σ√3: the path matches) and at half of it (nothing can match: an unmatched path), then
 prints each path's unmatched time against its matched time (issue 13: "a path that mostly does
 not match must cost about what one that matches does").
+
+``--rests`` times each case on the novel paths with three rests added (the path held still
+for 1 s, ``REST`` samples, at each quarter: a machine that stops, as a dwell in a part
+program) and on the same paths without them, and prints each path's time with its rests over
+its time without. A piece at rest has no arc length for the index, so the time-uniform grid
+searches it (``primlib/match/_grid.py``): on 1,000 primitives a path with three rests cost
+17x the path without them before the grid's blocks and caps.
 """
 
 from __future__ import annotations
@@ -58,6 +66,8 @@ CASES = {"default": {}, "rotation none": {"rotation": "none"}, "time scale 1-1":
     "time_scale": (1.0, 1.0)}}  # fmt: skip
 # --noise: each case at these multiples of the noise's RMS (labels "CASE, eps ..."), in order
 NOISE_EPS = {"eps 2x noise": 2.0, "eps noise/2": 0.5}
+RESTS = ("with rests", "moving")  # --rests: each case on the path with its rests, and without
+REST = 200  # samples of each rest (1 s at the bundled machine's dt)
 BASELINE = "3d2aff9"  # main before the lockstep refinement and the up-front rejection
 
 
@@ -142,6 +152,8 @@ def worker(spec: dict) -> dict:
             eps = default_eps(path)
             if spec.get("noise"):  # white noise; eps a multiple of its RMS (NOISE_EPS)
                 pts, eps = _noisy(pts, spec["noise"], seed, NOISE_EPS[at])
+            if at == RESTS[0]:  # held still at each quarter (RESTS)
+                pts = _with_rests(pts)
             if spec.get("shrink"):  # a path that barely moves: the same shape, scaled down
                 pts = pts.mean(axis=0) + (pts - pts.mean(axis=0)) * spec["shrink"]
                 eps *= spec["shrink"]
@@ -160,6 +172,18 @@ def worker(spec: dict) -> dict:
         out[label] = {"times": times, "cpu": cpu, "segments": segs, "fraction": frac,
                       "probes": probes}  # fmt: skip
     return out
+
+
+def _with_rests(pts, rests: int = 3, length: int = REST):
+    """``pts`` held still for ``length`` samples at each of ``rests`` evenly spaced points
+    (the samples there repeated): the same motion, with rests."""
+    import numpy as np
+
+    n = len(pts)
+    at = [n * (j + 1) // (rests + 1) for j in range(rests)]
+    parts = np.split(pts, at)
+    held = [np.repeat(pts[a - 1 : a], length, axis=0) for a in at]
+    return np.concatenate([x for pair in zip(parts, held + [pts[:0]], strict=True) for x in pair])
 
 
 def _noisy(pts, noise: float, seed: int, times: float):
@@ -224,6 +248,8 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
         what += f", white noise σ = {spec['noise']:g} of the extent"
     if spec.get("as_stored"):
         what += ", each of 5 stored pieces as stored (not turned, time scale 1)"
+    if spec.get("rests"):
+        what += f", and with 3 rests of {REST} samples"
     print(f"\n{spec['library']} library, {samples:,} samples, {what} (first call, seconds)")
     print("| case | median | CPU | worst | segments (median) | matched | baseline median | "
           "baseline CPU | ratio | CPU ratio |")  # fmt: skip
@@ -251,6 +277,22 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
     _per_search(spec, new)
     _over_default(spec, new)
     _unmatched_over_matched(spec, new, old)
+    _rests_over_moving(spec, new, old)
+
+
+def _rests_over_moving(spec: dict, new: dict, old: dict | None) -> None:
+    """With rests: each case's CPU on a path with its rests over its CPU on the same path
+    without them, path by path, and their median and worst."""
+    if not spec.get("rests"):
+        return
+    print(f"\nWith rests / without CPU, path by path (median, worst; the rests add "
+          f"{3 * REST} samples):")  # fmt: skip
+    for case in dict.fromkeys(label.partition(", ")[0] for label in spec["cases"]):
+        for tree, res in (("this tree", new), ("baseline", old)):
+            if res is None:
+                continue
+            still, moving = (res[f"{case}, {at}"]["cpu"] for at in RESTS)
+            print(f"- {case}, {tree}: {_ratios(still, moving, '{:.2f}x')}")
 
 
 def _scaling(spec: dict, long: tuple, short: tuple) -> None:
@@ -398,6 +440,12 @@ def main() -> None:
         "at eps 2x and 1/2x the noise's RMS: matched and unmatched",
     )
     ap.add_argument(
+        "--rests",
+        action="store_true",
+        help="time each case on the novel paths with three rests of 1 s added and without "
+        "them, and the ratio path by path",
+    )
+    ap.add_argument(
         "--as-stored",
         action="store_true",
         help="instead of novel paths: paths of 5 stored pieces as stored (not turned, time "
@@ -430,6 +478,11 @@ def main() -> None:
     if args.long:  # each library's paths again at 10x the samples, the default case alone
         specs += [dict(s, samples=10 * s["samples"], cases=["default"], short=s["samples"])
                   for s in specs if not s.get("file")]  # fmt: skip
+    if args.rests and args.noise:
+        ap.error("--rests and --noise: one at a time")
+    if args.rests:
+        for spec in specs:  # each case with rests, then moving, on the same path
+            spec.update(rests=True, cases=[f"{c}, {r}" for c in spec["cases"] for r in RESTS])
     if args.noise:
         for spec in specs:  # each case matched, then unmatched, on the same noisy path
             spec.update(

@@ -164,3 +164,29 @@ def test_over_default_divides_each_restricted_path_by_the_default_on_it(bench, c
     assert "segments against the default's: 1/2, 2/1" in text
     bench._over_default({"cases": ["rotation none"]}, new)  # no default: nothing to divide by
     assert capsys.readouterr().out == ""
+
+
+def test_rests_hold_the_path_still_and_keep_its_motion(bench):
+    import numpy as np
+
+    pts = np.column_stack([np.arange(40.0), np.zeros(40), np.zeros(40)])
+    held = bench._with_rests(pts, rests=3, length=5)
+    assert held.shape == (55, 3)
+    steps = np.diff(held[:, 0])
+    assert np.count_nonzero(steps == 0.0) == 15  # 3 rests of 5 samples, each repeating one
+    assert np.all(steps >= 0.0)  # in order
+    assert np.array_equal(np.unique(held[:, 0]), pts[:, 0])  # no sample lost or made up
+
+
+def test_rests_time_each_case_with_and_without_them_and_print_their_ratio(bench, capsys):
+    cases = [f"default, {at}" for at in bench.RESTS]
+    spec = {"library": "bundled", "samples": 300, "paths": 1, "rests": True, "cases": cases}
+    out = bench.worker(spec)
+    still, moving = (out[c] for c in cases)
+    for r in (still, moving):
+        assert r["segments"][0][-1][0] == pytest.approx(1.0)
+    bench._report(spec, out, None)
+    ratio = still["cpu"][0] / moving["cpu"][0]
+    text = capsys.readouterr().out
+    assert "and with 3 rests of 200 samples" in text
+    assert f"- default, this tree: {ratio:.2f}x (median {ratio:.2f}x" in text
