@@ -8,17 +8,19 @@ import numpy as np
 import pytest
 
 from primlib.match import BankIndex, segment_path
-from primlib.match._grid import GridSearch, _coefficient_table, _coefficients_at, _Query
+from primlib.match._grid import GridSearch, _coefficient_table, _coefficients_at
 from primlib.match._grid_blocks import Scale, runs, without
 from primlib.match._grid_bound import (
     above32,
     below32,
+    beyond,
     block_boxes,
     box_gaps,
     chord_boxes,
     chord_boxes_at,
     chord_radii,
     endpoint_gap,
+    halved_boxes,
     speed_bounds,
 )
 from primlib.match._interp import cubic_at
@@ -72,7 +74,9 @@ def test_a_blocks_bounds_are_below_every_window_that_starts_in_it(rotation):
             if fd < 7:
                 continue
             width = 1 << int(math.log2((fd - 1) / 3.0))
-            lo, hi = block_boxes(bank.points, speeds, width, chunk=7)  # chunks: the same
+            lo, hi = block_boxes(bank.points, speeds, chunk=6)  # chunks: the same boxes
+            for _ in range(int(math.log2(width)) - 1):
+                lo, hi = halved_boxes(lo, hi)
             span = ((fd - 1) // width, 1 + fd // width)  # the blocks a window ends in
             exact = box_gaps(*chord_boxes(lo, hi, *span), q_chord, rotation) / root
             rows = np.arange(0, lo.shape[0], 3)
@@ -92,12 +96,17 @@ def test_a_blocks_bounds_are_below_every_window_that_starts_in_it(rotation):
             block = (bank.offsets[prim] + np.floor(x0).astype(int)) // width
             assert np.all(g >= exact[block] - 1e-12)
             assert np.all(exact >= wide - 1e-12)  # the wider union: the smaller bound
-            # and _blocks_of, with no cap, keeps every block with a bound at least as large
+            # and the search's blocks, with no limit, keep every block with a bound at
+            # least as large; under a limit, those whose bound is not beyond it
             grid.few = 0
-            query = _Query(np.zeros((K, 3)), 0.0, 0.0, q_chord, float(np.abs(q_chord).max()))
-            _, live, bound = grid._blocks_of(sc, query, math.inf, 0.0)
+            starts = grid._start_blocks(sc)
+            _, live, bound = starts.bounds(sc.dur, q_chord, rotation, K, math.inf, 0.0, 0.0)
             assert live.tolist() == list(range(near.size))
             assert np.all(g >= bound[block] - 1e-12)
+            limit = float(np.quantile(bound, 0.3))
+            _, some, below = starts.bounds(sc.dur, q_chord, rotation, K, limit, 0.0, 0.0)
+            np.testing.assert_array_equal(some, live[~beyond(bound, limit, 0.0, 0.0)])
+            np.testing.assert_array_equal(below, bound[some])
 
 
 def test_float32_boxes_and_ranges_round_outwards():
@@ -107,7 +116,7 @@ def test_float32_boxes_and_ranges_round_outwards():
     assert np.all(above32(x).astype(np.float64) >= x)
     assert np.all(above32(x) - below32(x) <= 2 * np.spacing(np.abs(x).astype(np.float32)))
     pts, speeds = rng.normal(size=(103, 3)), rng.uniform(0, 0.1, 103)
-    lo, hi = block_boxes(pts, speeds, 4)
+    lo, hi = halved_boxes(*block_boxes(pts, speeds, chunk=10))
     assert lo.shape == hi.shape == (26, 3) and lo.dtype == np.float32
     for b in range(26):
         i = slice(4 * b, min(103, 4 * b + 4))
@@ -176,7 +185,7 @@ def test_coefficients_formed_from_neighbours_are_the_tables_to_the_bit():
 
 def _plain(monkeypatch) -> None:
     """The grid without blocks or caps, as before them."""
-    monkeypatch.setattr(GridSearch, "_blocks_of", lambda self, *a: None)
+    monkeypatch.setattr(GridSearch, "_start_blocks", lambda self, sc: None)
     pooled = GridSearch._pooled
     monkeypatch.setattr(GridSearch, "_pooled",
                         lambda self, *a, capped: pooled(self, *a, capped=False))  # fmt: skip

@@ -302,35 +302,32 @@ class GridSearch:
                      cap: float = math.inf) -> Best:  # fmt: skip
         """The scale's best windows below their gates and ``cap``.
 
-        On a scale of many windows, by blocks of their starts first (:meth:`_blocks_of`):
-        the ``_HEAD`` blocks of the smallest bounds searched first (the scale's best
-        windows are mostly there), then the others whose bound is not beyond the limit
-        that left (the ``top``-th best RMSD, or ``cap``), none resampled before. Each part
-        (or the whole scale) is searched by :meth:`_best_first`."""
+        On a scale of many windows, by blocks of their starts (:mod:`._grid_blocks`): first
+        ``_HEAD`` blocks whose chords are nearest the query's
+        (:meth:`._grid_blocks.StartBlocks.head`: most of the best windows of a piece at
+        rest are in the stillest blocks), then the other blocks whose bound is not beyond
+        the limit that leaves (the ``top``-th best RMSD, or ``cap``), none resampled before.
+        Each part (or the whole scale) is searched by :meth:`_best_first`."""
         best = Best(8 * self.opts.seeds)
-        blocks = self._blocks_of(sc, query, cap, slack)
-        if blocks is None:
+        starts = self._start_blocks(sc)
+        if starts is None:
             self._best_first(sc, query, eps, slack, cap, best)
             return best
-        width, live, bound = blocks
-        if live.size <= _HEAD:
-            head = runs(live, width, self.bank.offsets, sc)
-            if head is not None:
-                self._best_first(head, query, eps, slack, cap, best)
-            return best
-        at = np.argpartition(bound, _HEAD - 1)
-        head = runs(live[at[:_HEAD]], width, self.bank.offsets, sc)
+        width = starts.width(sc.dur)
+        first = starts.head(sc.dur, query.chord, self.opts.rotation, _HEAD)
+        head = runs(first, width, self.bank.offsets, sc)
         if head is not None:
             self._best_first(head, query, eps, slack, cap, best)
-        rest = at[_HEAD:]
-        rest = rest[~beyond(bound[rest], min(best.limit(), cap), query.rg, slack)]
-        n_blocks = -(-self.bank.points.shape[0] // width)
-        if rest.size > n_blocks // 4:  # blocks prove little: the scale but the head's runs
-            rest_sc = without(sc, head)
+        limit = min(best.limit(), cap)
+        _, live, _ = starts.bounds(sc.dur, query.chord, self.opts.rotation,
+                                   self.opts.grid_points, limit, query.rg, slack)  # fmt: skip
+        live = live[~np.isin(live, first)]
+        if live.size > starts.count(width) // 4:  # blocks prove little: all but the head
+            rest = without(sc, head)
         else:
-            rest_sc = runs(live[rest], width, self.bank.offsets, sc)
-        if rest_sc is not None:
-            self._best_first(rest_sc, query, eps, slack, cap, best)
+            rest = runs(live, width, self.bank.offsets, sc)
+        if rest is not None:
+            self._best_first(rest, query, eps, slack, cap, best)
         return best
 
     def _best_first(self, sc: _Scale, query: _Query, eps: float, slack: float, cap: float,
@@ -353,17 +350,15 @@ class GridSearch:
                 self._score_part(sc, query, eps, st, part, best, slack, cap)
             size = min(4 * size, self.chunk) if st.s > 1 else left.size  # few: the rest at once
 
-    def _blocks_of(self, sc: _Scale, query: _Query, cap: float,
-                   slack: float) -> tuple[int, np.ndarray, np.ndarray] | None:  # fmt: skip
-        """A scale's blocks of starts not beyond ``cap`` and their bounds
-        (:meth:`._grid_blocks.StartBlocks.bounds`) on a scale of more than ``few``
-        windows lasting 4 samples or more; None elsewhere (the scale searched whole)."""
+    def _start_blocks(self, sc: _Scale) -> StartBlocks | None:
+        """The blocks of starts (:class:`._grid_blocks.StartBlocks`, made at the first ask)
+        for a scale of more than ``few`` windows lasting 7 samples or more; None elsewhere
+        (the scale is searched whole)."""
         if StartBlocks.width(sc.dur) is None or int(sc.n_start.sum()) <= self.few:
             return None
         if self._starts is None:
             self._starts = StartBlocks(self.bank.points, self._blocks(1))
-        return self._starts.bounds(sc.dur, query.chord, self.opts.rotation,
-                                   self.opts.grid_points, cap, query.rg, slack)  # fmt: skip
+        return self._starts
 
     def _score_part(self, sc: _Scale, query: _Query, eps: float, st: _Stretches,
                     part: np.ndarray, best: Best, slack: float, cap: float) -> None:  # fmt: skip

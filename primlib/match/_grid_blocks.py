@@ -44,6 +44,8 @@ from primlib.match._grid_bound import (
     chord_boxes,
     chord_boxes_at,
     chord_radii,
+    halved_boxes,
+    spare,
 )
 
 __all__ = ["Scale", "StartBlocks", "runs", "without"]
@@ -95,6 +97,7 @@ class StartBlocks:
     speeds: np.ndarray
     _box: dict = field(default_factory=dict, init=False, repr=False)
     _radius: dict = field(default_factory=dict, init=False, repr=False)
+    _order: dict = field(default_factory=dict, init=False, repr=False)
 
     @staticmethod
     def width(dur: float) -> int | None:
@@ -111,7 +114,9 @@ class StartBlocks:
         those bounds.
 
         Every block's bound is first that of its chords to the blocks 3 to 7 on (their
-        lengths' range, :meth:`radii`: one comparison a block); the blocks it leaves take
+        lengths' range, :meth:`radii`), on the blocks whose least length can be near enough
+        to |c_q| alone (a prefix of the blocks in its order: no pass over every block under
+        a tight limit); the blocks it leaves take
         the larger of it and :func:`._grid_bound.box_gaps` of their chords to the 3 blocks
         a window of this duration ends in (and their directions, under ``"none"``). Both
         are over √(2K), bounds on ρ as the stretches' are (ρ ≥ g(c_w)/√(2K))."""
@@ -120,28 +125,56 @@ class StartBlocks:
         near, far = self.radii(width)
         root = math.sqrt(2.0 * k)
         length = float(np.linalg.norm(q_chord))
-        wide = near.astype(np.float64) - length
+        # the blocks whose chords can be short enough: a prefix of them by their least
+        # length (its bound rounded up to float32, so no such block is left out)
+        reach = root * (float(spare(limit, rg_q)) + slack) * (1.0 + 1e-9) + length
+        order, ranked = self._order[width]
+        rows = order[: np.searchsorted(ranked, above32(np.array([reach]))[0], side="right")]
+        wide = near[rows].astype(np.float64) - length
         if length > 0.0:
-            np.maximum(wide, length - far.astype(np.float64), out=wide)
+            np.maximum(wide, length - far[rows].astype(np.float64), out=wide)
         np.maximum(wide, 0.0, out=wide)
         wide /= root
-        live = np.flatnonzero(~beyond(wide, limit, rg_q, slack))
+        keep = np.flatnonzero(~beyond(wide, limit, rg_q, slack))
+        keep = keep[np.argsort(rows[keep])]  # in block order
+        live, wide = rows[keep], wide[keep]
         lo, hi = self.boxes(width)
         ends = ((fd - 1) // width, 1 + fd // width)
-        if live.size <= wide.size // _GATHER:
+        if live.size <= near.size // _GATHER:
             gap = box_gaps(*chord_boxes_at(lo, hi, *ends, live), q_chord, rotation)
         else:  # many: by slices, a chunk of blocks at a time
             gap = np.empty(live.size)
-            cuts = np.searchsorted(live, np.arange(0, wide.size + _CHUNK, _CHUNK))
+            cuts = np.searchsorted(live, np.arange(0, near.size + _CHUNK, _CHUNK))
             for j, (c0, c1) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
                 if c1 > c0:
                     start = j * _CHUNK
-                    c_lo, c_hi = chord_boxes(lo, hi, *ends, start, min(start + _CHUNK, wide.size))
+                    c_lo, c_hi = chord_boxes(lo, hi, *ends, start, min(start + _CHUNK, near.size))
                     at = live[c0:c1] - start
                     gap[c0:c1] = box_gaps(c_lo[at], c_hi[at], q_chord, rotation)
-        bound = np.maximum(gap / root, wide[live])
+        bound = np.maximum(gap / root, wide)
         keep = ~beyond(bound, limit, rg_q, slack)
         return width, live[keep], bound[keep]
+
+    def count(self, width: int) -> int:
+        """The number of blocks of ``width`` intervals."""
+        return -(-self.points.shape[0] // width)
+
+    def head(self, dur: float, q_chord: np.ndarray, rotation: str, n: int) -> np.ndarray:
+        """``n`` blocks (in block order) likely to hold a scale's best windows: of the 8n
+        whose least chord length to the blocks 3 to 7 on is nearest |c_q| (the stillest,
+        for a piece at rest), the n of the smallest bounds of :meth:`bounds`."""
+        width = self.width(dur)
+        self.radii(width)
+        order, ranked = self._order[width]
+        at = int(np.searchsorted(ranked, float(np.linalg.norm(q_chord))))
+        lo = max(0, min(at - 4 * n, order.size - 8 * n))
+        rows = np.sort(order[lo : lo + 8 * n])
+        fd = math.floor(dur)
+        ends = ((fd - 1) // width, 1 + fd // width)
+        gap = box_gaps(*chord_boxes_at(*self.boxes(width), *ends, rows), q_chord, rotation)
+        if gap.size > n:
+            rows = np.sort(rows[np.argpartition(gap, n - 1)[:n]])
+        return rows
 
     def radii(self, width: int) -> tuple[np.ndarray, np.ndarray]:
         """Per block of ``width`` intervals, the least and greatest chord length to the
@@ -156,13 +189,18 @@ class StartBlocks:
                 n64, f64 = chord_radii(*chord_boxes(lo, hi, 3, 7, start, stop))
                 near[start:stop], far[start:stop] = below32(n64), above32(f64)
             self._radius[width] = near, far
+            order = np.argsort(near, kind="stable")
+            self._order[width] = order, near[order]
         return self._radius[width]
 
     def boxes(self, width: int) -> tuple[np.ndarray, np.ndarray]:
-        """The boxes of blocks of ``width`` intervals (:func:`._grid_bound.block_boxes`),
-        kept."""
+        """The boxes of blocks of ``width`` intervals (2: :func:`._grid_bound.block_boxes`,
+        twice as wide: :func:`._grid_bound.halved_boxes` of these), kept."""
         if width not in self._box:
-            self._box[width] = block_boxes(self.points, self.speeds, width)
+            if width == 2:
+                self._box[2] = block_boxes(self.points, self.speeds)
+            else:
+                self._box[width] = halved_boxes(*self.boxes(width // 2))
         return self._box[width]
 
 

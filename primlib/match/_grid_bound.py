@@ -38,8 +38,8 @@ anchor's chord (:func:`anchor_values`).
 
 Block bound. On the interval i, |P(x) − p_i| ≤ Λ_i (the speed bound above over at most one
 sample), so P over the intervals of a block of W consecutive ones (numbered through the whole
-bank) lies in the box [min (p_i − Λ_i), max (p_i + Λ_i)] per axis (:func:`block_boxes`). A
-window's computed start m·h lies on the interval i0 = ⌊m·h⌋ and its
+bank) lies in the box [min (p_i − Λ_i), max (p_i + Λ_i)] per axis (:func:`block_boxes`,
+:func:`halved_boxes`). A window's computed start m·h lies on the interval i0 = ⌊m·h⌋ and its
 computed end, D later up to round-off, on i1 with i1 − i0 ∈ [⌊D⌋ − 1, ⌊D⌋ + 1] (P at an
 integer x is p_x, in the box of x's own block, also at a primitive's last sample): from the
 block X of i0 the end lies in the blocks X + ⌊(⌊D⌋ − 1)/W⌋ to X + 1 + ⌊⌊D⌋/W⌋, and the chord
@@ -73,12 +73,14 @@ __all__ = [
     "stretch_bounds",
     "beyond",
     "block_boxes",
+    "halved_boxes",
     "below32",
     "above32",
     "chord_boxes",
     "chord_boxes_at",
     "chord_radii",
     "box_gaps",
+    "spare",
     "Best",
 ]
 
@@ -146,26 +148,35 @@ def stretch_bounds(values: np.ndarray, n_stretch: np.ndarray, reach: np.ndarray,
     return np.maximum(mean, values[left] - reach * (2.0 * (s - 1) / s))
 
 
-def block_boxes(points: np.ndarray, speeds: np.ndarray, width: int,
-                chunk: int = 1 << 16) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """Per block of ``width`` consecutive intervals of the bank (the last one shorter), the
-    box that holds the interpolant over them: the least p_i − Λ_i and the greatest p_i + Λ_i
-    per axis (``speeds`` Λ_i, :func:`speed_bounds`; module notes), in float32 rounded
-    outwards (a box that holds the float64 one; half the memory). ``chunk`` blocks at a time.
-    Shapes (⌈N/width⌉, d)."""
+def block_boxes(points: np.ndarray, speeds: np.ndarray,
+                chunk: int = 1 << 17) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Per block of 2 consecutive intervals of the bank (the last one alone where N is odd),
+    the box that holds the interpolant over them: the least p_i − Λ_i and the greatest
+    p_i + Λ_i per axis (``speeds`` Λ_i, :func:`speed_bounds`; module notes), in float32
+    rounded outwards (a box that holds the float64 one; half the memory), ``chunk`` samples
+    at a time. Shapes (⌈N/2⌉, d); wider blocks by :func:`halved_boxes`."""
     n, d = points.shape
-    nb = -(-n // width)
+    nb = -(-n // 2)
     lo, hi = np.empty((nb, d), np.float32), np.empty((nb, d), np.float32)
-    for b0 in range(0, nb, chunk):
-        b1 = min(nb, b0 + chunk)
-        i0, i1 = b0 * width, min(n, b1 * width)
+    for i0 in range(0, n, chunk):  # chunk is even: blocks do not straddle two
+        i1 = min(n, i0 + chunk)
         p, v = points[i0:i1], speeds[i0:i1, None]
-        pad = (b1 - b0) * width - (i1 - i0)  # the last block's missing intervals: its last
-        low = np.concatenate([p - v, np.repeat(p[-1:] - v[-1:], pad, axis=0)])
-        high = np.concatenate([p + v, np.repeat(p[-1:] + v[-1:], pad, axis=0)])
-        lo[b0:b1] = below32(low.reshape(-1, width, d).min(axis=1))
-        hi[b0:b1] = above32(high.reshape(-1, width, d).max(axis=1))
+        low, high = p - v, p + v
+        even = (i1 - i0) // 2 * 2
+        b0, b1 = i0 // 2, i0 // 2 + even // 2
+        lo[b0:b1] = below32(np.minimum(low[0:even:2], low[1:even:2]))
+        hi[b0:b1] = above32(np.maximum(high[0:even:2], high[1:even:2]))
+        if even < i1 - i0:  # the last sample alone
+            lo[b1], hi[b1] = below32(low[-1:])[0], above32(high[-1:])[0]
     return lo, hi
+
+
+def halved_boxes(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The boxes of blocks twice as wide: each pair of blocks' union (a last one alone;
+    float32 minima and maxima are exact)."""
+    if lo.shape[0] % 2:
+        lo, hi = np.concatenate([lo, lo[-1:]]), np.concatenate([hi, hi[-1:]])
+    return np.minimum(lo[0::2], lo[1::2]), np.maximum(hi[0::2], hi[1::2])
 
 
 def below32(x: np.ndarray) -> np.ndarray:
@@ -240,9 +251,13 @@ def beyond(bound: np.ndarray, limit: np.ndarray | float, rg_q: float, slack: flo
     """Where a lower bound on ρ proves the computed RMSD above ``limit``: bound² > limit²
     plus the round-off of ρ² (relative to Σ|q̃|²/K = rg_q² and to limit²), and ``bound``
     past an absolute ``slack`` for the round-off of the chords (coordinates' magnitude)."""
+    return bound - slack > spare(limit, rg_q)
+
+
+def spare(limit: np.ndarray | float, rg_q: float) -> np.ndarray:
+    """The greatest ρ :func:`beyond` takes as not above ``limit`` (before its ``slack``)."""
     limit = np.asarray(limit, dtype=float)
-    spare = np.sqrt(limit * limit * (1.0 + _REL) + _REL * rg_q * rg_q)
-    return bound - slack > spare
+    return np.sqrt(limit * limit * (1.0 + _REL) + _REL * rg_q * rg_q)
 
 
 class Best:
