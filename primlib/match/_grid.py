@@ -34,14 +34,15 @@ of scoring every window so (``benchmarks/_reference_search.every_window_seeds``)
 
 Two more prunings leave the seeds as they are. On a scale of many windows the starts are cut
 in blocks, each with one bound on the chords of the windows starting in it
-(:mod:`._grid_blocks`): the blocks of the smallest bounds are searched first, and the others
-only where their bound is not beyond the limit that leaves, none resampled before. And the
+(:mod:`._grid_blocks`): a few blocks whose chords are nearest the query's are searched first,
+and the others only where their bound is not beyond the limit that leaves, none resampled
+before. And the
 scales are searched under a cap taken from the pool so far (:meth:`GridSearch.seeds`): a
 window scoring above the ``seeds``-th candidate the suppression keeps is not among the picks
 unless a later candidate suppresses earlier ones, which is checked, and then the scales are
 searched again without caps. A piece at rest (a path that stops: a piece the index cannot
-place) against 1,000 primitives scored ~80,000 windows and took 1.4 s, ~0.2 s with both
-(``benchmarks/bench_match_novel.py --dwell``).
+place) against 1,000 primitives scored ~80,000 windows and took 1.4 s; with both ~300 and
+0.13-0.17 s (``benchmarks/bench_match_novel.py --rests``).
 
 The index search falls back on it for (nearly) stationary or very short pieces; the tests
 and benchmarks also run it on whole paths as the exhaustive reference.
@@ -77,7 +78,7 @@ from primlib.match._pool import suppress
 
 __all__ = ["GridSearch", "scale_grid"]
 
-_HEAD = 64  # blocks of the smallest bounds searched first on a scale (GridSearch._scale_seeds)
+_HEAD = 64  # blocks searched first on a scale, to set its limit (GridSearch._scale_seeds)
 _TABLE = 8  # a resampling of more than 1/_TABLE of the bank's samples builds the table
 
 
@@ -260,7 +261,7 @@ class GridSearch:
 
         The scales are searched in order under a cap: once the suppression of the pool so
         far keeps ``seeds`` candidates, no window scoring above the last of them (the cap)
-        is scored on the scales after (:meth:`_blocks_of` drops whole blocks of starts by it).
+        is scored on the scales after (:meth:`_scale_seeds` drops whole blocks of starts by it).
         A window above every cap taken (``low``) comes after the suppression's picks in
         its order, so where the picks end at or below ``low`` they are those of the search
         without caps: the pool's windows at or below ``low`` are the same (each scale's
@@ -303,9 +304,10 @@ class GridSearch:
         """The scale's best windows below their gates and ``cap``.
 
         On a scale of many windows, by blocks of their starts (:mod:`._grid_blocks`): first
-        ``_HEAD`` blocks whose chords are nearest the query's
-        (:meth:`._grid_blocks.StartBlocks.head`: most of the best windows of a piece at
-        rest are in the stillest blocks), then the other blocks whose bound is not beyond
+        ``_HEAD`` blocks, those of the smallest bounds among the blocks ``cap`` leaves (none
+        left: nothing is searched), or with no cap those whose chords are nearest the
+        query's (:meth:`._grid_blocks.StartBlocks.head`: most of the best windows of a piece
+        at rest are in the stillest blocks); then the other blocks whose bound is not beyond
         the limit that leaves (the ``top``-th best RMSD, or ``cap``), none resampled before.
         Each part (or the whole scale) is searched by :meth:`_best_first`."""
         best = Best(8 * self.opts.seeds)
@@ -314,13 +316,24 @@ class GridSearch:
             self._best_first(sc, query, eps, slack, cap, best)
             return best
         width = starts.width(sc.dur)
-        first = starts.head(sc.dur, query.chord, self.opts.rotation, _HEAD)
+        if cap < math.inf:  # the blocks the cap leaves, the 64 of the smallest bounds first
+            _, live, bound = self._block_bounds(starts, sc, query, cap, slack)
+            if live.size <= _HEAD:
+                part = runs(live, width, self.bank.offsets, sc)
+                if part is not None:
+                    self._best_first(part, query, eps, slack, cap, best)
+                return best
+            first = np.sort(live[np.argpartition(bound, _HEAD - 1)[:_HEAD]])
+        else:
+            first = starts.head(sc.dur, query.chord, self.opts.rotation, _HEAD)
         head = runs(first, width, self.bank.offsets, sc)
         if head is not None:
             self._best_first(head, query, eps, slack, cap, best)
         limit = min(best.limit(), cap)
-        _, live, _ = starts.bounds(sc.dur, query.chord, self.opts.rotation,
-                                   self.opts.grid_points, limit, query.rg, slack)  # fmt: skip
+        if cap < math.inf:
+            live = live[~beyond(bound, limit, query.rg, slack)]
+        else:
+            _, live, _ = self._block_bounds(starts, sc, query, limit, slack)
         live = live[~np.isin(live, first)]
         if live.size > starts.count(width) // 4:  # blocks prove little: all but the head
             rest = without(sc, head)
@@ -359,6 +372,12 @@ class GridSearch:
         if self._starts is None:
             self._starts = StartBlocks(self.bank.points, self._blocks(1))
         return self._starts
+
+    def _block_bounds(self, starts: StartBlocks, sc: _Scale, query: _Query, limit: float,
+                      slack: float) -> tuple[int, np.ndarray, np.ndarray]:  # fmt: skip
+        """:meth:`._grid_blocks.StartBlocks.bounds` for the scale and query."""
+        return starts.bounds(sc.dur, query.chord, self.opts.rotation, self.opts.grid_points,
+                             limit, query.rg, slack)  # fmt: skip
 
     def _score_part(self, sc: _Scale, query: _Query, eps: float, st: _Stretches,
                     part: np.ndarray, best: Best, slack: float, cap: float) -> None:  # fmt: skip

@@ -14,18 +14,20 @@ notes of :mod:`._grid_bound`, *Block bound*). W is the power of 2 at or below (�
 so that a window ends 3 to 7 blocks on (neighbouring boxes touch: a chord to the next block
 may be 0): a block's bound is within about two blocks' motion of the chords' own. Scales of
 windows shorter than 7 samples (W would be 1) are searched whole: their blocks would hold
-as many bytes as the bank and bound little. The boxes and chord ranges are kept in float32
-rounded outwards (~12 and 8 bytes a block; on 1,000 primitives of 2,000 samples ~64 MB in
-all, formed a chunk of blocks at a time).
+as many bytes as the bank and bound little. Per W the boxes, the chords' length range to the
+blocks 3 to 7 on (float32, rounded outwards) and the blocks' order by its least length are
+kept, 44 bytes a block, formed a chunk of blocks at a time (on 1,000 primitives of 2,000
+samples 44 MB at W = 2, half that at each width after).
 
-:class:`StartBlocks` gives a scale's blocks not beyond a limit and their bounds, first by
-one comparison a block against the chords' length range to the blocks 3 to 7 on (kept per
-W, ~16 bytes a block), then, on the blocks that leave, by the box of this duration's 3.
+:class:`StartBlocks` gives a scale's blocks not beyond a limit and their bounds: the blocks
+whose least chord length can be near enough to the query's, a prefix of them in that order,
+bounded by the length range, then the blocks that leave by the box of this duration's 3.
 :func:`runs` turns a set of blocks into the runs of windows m0, ..., m0 + n − 1 that start
 in them, by the computed m·h every resampling takes, so that every window is in exactly one
 block and disjoint sets of blocks never share a window (:func:`without`: a scale less some
-runs). The grid searches a scale's 64 blocks of the smallest bounds first, then the others
-not beyond the limit that leaves (``GridSearch._scale_seeds``).
+runs). The grid searches first 64 blocks whose chords are nearest the query's
+(:meth:`StartBlocks.head`), then the others not beyond the limit that leaves
+(``GridSearch._scale_seeds``).
 """
 
 from __future__ import annotations
@@ -189,7 +191,7 @@ class StartBlocks:
                 n64, f64 = chord_radii(*chord_boxes(lo, hi, 3, 7, start, stop))
                 near[start:stop], far[start:stop] = below32(n64), above32(f64)
             self._radius[width] = near, far
-            order = np.argsort(near, kind="stable")
+            order = np.argsort(near, kind="stable").astype(np.int32)
             self._order[width] = order, near[order]
         return self._radius[width]
 
