@@ -9,7 +9,7 @@ import pytest
 
 from primlib.match import BankIndex, segment_path
 from primlib.match._grid import GridSearch, _coefficient_table, _coefficients_at
-from primlib.match._grid_blocks import Scale, runs, without
+from primlib.match._grid_blocks import Scale, StartBlocks, runs, without
 from primlib.match._grid_bound import (
     above32,
     below32,
@@ -45,8 +45,9 @@ def _walk(rng, n: int, speed: float, stop: bool = False) -> np.ndarray:
 
 
 def _bank(rng, k: int = 6, n: int = 400) -> BankIndex:
-    """Primitives at several speeds, every third at rest a while, and one of 3 samples."""
-    prims = [_walk(rng, n, rng.uniform(0.02, 0.3), stop=i % 3 == 0) for i in range(k)]
+    """Primitives at several speeds and lengths (so that blocks straddle their seams), every
+    third at rest a while, and one of 3 samples."""
+    prims = [_walk(rng, n + 37 * i, rng.uniform(0.02, 0.3), stop=i % 3 == 0) for i in range(k)]
     prims.append(_walk(rng, 3, 0.1))
     return BankIndex(Bank.from_samples(prims, DT))
 
@@ -107,6 +108,42 @@ def test_a_blocks_bounds_are_below_every_window_that_starts_in_it(rotation):
             _, some, below = starts.bounds(sc.dur, q_chord, rotation, K, limit, 0.0, 0.0)
             np.testing.assert_array_equal(some, live[~beyond(bound, limit, 0.0, 0.0)])
             np.testing.assert_array_equal(below, bound[some])
+
+
+def test_a_seams_boxes_hold_its_last_primitives_starts_and_its_firsts_ends():
+    # where a primitive starts inside a block, windows start there only on the block's last
+    # primitive's intervals and end there only on its first's: each part has its own box
+    rng = np.random.default_rng(4)
+    bank = _bank(rng)
+    speeds = speed_bounds(bank.points, bank.offsets)
+    starts = StartBlocks(bank.points, bank.offsets, speeds)
+    low, high = bank.points - speeds[:, None], bank.points + speeds[:, None]
+    for width in (2, 8, 32):
+        block, mask, s_lo, s_hi, e_lo, e_hi = starts.seams(width)
+        inner = bank.offsets[1:-1]
+        want = np.unique(inner[inner % width != 0] // width)
+        np.testing.assert_array_equal(block, want)
+        assert mask.sum() == block.size and np.all(mask[block])
+        for j, x in enumerate(block):
+            cut = inner[(inner > x * width) & (inner < (x + 1) * width)]
+            last = slice(cut.max(), min((x + 1) * width, len(bank.points)))
+            first = slice(x * width, cut.min())
+            np.testing.assert_allclose(s_lo[j], low[last].min(axis=0), rtol=1e-6)
+            np.testing.assert_allclose(s_hi[j], high[last].max(axis=0), rtol=1e-6)
+            np.testing.assert_allclose(e_lo[j], low[first].min(axis=0), rtol=1e-6)
+            np.testing.assert_allclose(e_hi[j], high[first].max(axis=0), rtol=1e-6)
+            assert np.all(s_lo[j] <= low[last].min(axis=0))
+            assert np.all(e_hi[j] >= high[first].max(axis=0))
+    # and they bound: a seam's union box spans two primitives apart, its own parts less
+    for dur in (40.0, 130.0):
+        width, live, bound = starts.bounds(dur, np.zeros(3), "full", K, math.inf, 0.0, 0.0)
+        block = starts.seams(width)[0]
+        fd = math.floor(dur)
+        span = ((fd - 1) // width, 1 + fd // width)
+        union = box_gaps(*chord_boxes_at(*starts.boxes(width), *span, block), np.zeros(3),
+                         "full") / math.sqrt(2 * K)  # fmt: skip
+        own = bound[np.searchsorted(live, block)]
+        assert np.all(own >= union) and np.any(own > union + 1e-3)
 
 
 def test_float32_boxes_and_ranges_round_outwards():

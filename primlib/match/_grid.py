@@ -370,7 +370,7 @@ class GridSearch:
         if StartBlocks.width(sc.dur) is None or int(sc.n_start.sum()) <= self.few:
             return None
         if self._starts is None:
-            self._starts = StartBlocks(self.bank.points, self._blocks(1))
+            self._starts = StartBlocks(self.bank.points, self.bank.offsets, self._blocks(1))
         return self._starts
 
     def _block_bounds(self, starts: StartBlocks, sc: _Scale, query: _Query, limit: float,

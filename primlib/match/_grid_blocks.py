@@ -90,16 +90,18 @@ class StartBlocks:
 
     Parameters
     ----------
-    points, speeds : arrays
-        The bank's samples and each interval's speed bound Λ_i
-        (:func:`._grid_bound.speed_bounds`).
+    points, offsets, speeds : arrays
+        The bank's samples, its primitives' first rows (and the end) and each interval's
+        speed bound Λ_i (:func:`._grid_bound.speed_bounds`).
     """
 
     points: np.ndarray
+    offsets: np.ndarray
     speeds: np.ndarray
     _box: dict = field(default_factory=dict, init=False, repr=False)
     _radius: dict = field(default_factory=dict, init=False, repr=False)
     _order: dict = field(default_factory=dict, init=False, repr=False)
+    _seam: dict = field(default_factory=dict, init=False, repr=False)
 
     @staticmethod
     def width(dur: float) -> int | None:
@@ -153,9 +155,84 @@ class StartBlocks:
                     c_lo, c_hi = chord_boxes(lo, hi, *ends, start, min(start + _CHUNK, near.size))
                     at = live[c0:c1] - start
                     gap[c0:c1] = box_gaps(c_lo[at], c_hi[at], q_chord, rotation)
+        fix = self._near_seams(width, live, ends)
+        if fix.size:  # where primitives meet: each block's own primitive's part, as a start
+            c_lo, c_hi = self._seam_chords(width, live[fix], ends)
+            gap[fix] = np.maximum(gap[fix], box_gaps(c_lo, c_hi, q_chord, rotation))
         bound = np.maximum(gap / root, wide)
         keep = ~beyond(bound, limit, rg_q, slack)
         return width, live[keep], bound[keep]
+
+    def seams(self, width: int) -> tuple[np.ndarray, ...]:
+        """The blocks of ``width`` intervals where a primitive starts inside (sorted), a mask
+        of them over every block, and per such block the boxes (float32, outwards) of its
+        last primitive's intervals and of its first's, kept.
+
+        A window of duration D >= 3W + 1 starts in such a block only on its last
+        primitive's intervals (on the first's it would run past that primitive's end, a
+        primitive wholly inside being shorter than W) and ends in one only on its first's
+        (it starts more than W before): the union box of the block, which holds the motion
+        of two primitives that need not be near each other, is no bound there."""
+        if width not in self._seam:
+            n = self.points.shape[0]
+            inner = self.offsets[1:-1]
+            inner = inner[inner % width != 0]
+            block, first_at = np.unique(inner // width, return_index=True)
+            last_at = np.append(first_at[1:], inner.size)[: block.size] - 1
+            top = np.minimum((block + 1) * width, n)
+            starts = self._range_boxes(inner[last_at], top)  # the last primitive's part
+            ends = self._range_boxes(block * width, inner[first_at])  # the first's
+            mask = np.zeros(self.count(width), dtype=bool)
+            mask[block] = True
+            self._seam[width] = (block, mask, *starts, *ends)
+        return self._seam[width]
+
+    def _range_boxes(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The boxes of the intervals [a_j, b_j) (disjoint, in order, none empty)."""
+        if a.size == 0:
+            none = np.empty((0, self.points.shape[1]), np.float32)
+            return none, none
+        idx = np.concatenate([np.arange(x, y) for x, y in zip(a, b, strict=True)])
+        at = np.concatenate([[0], np.cumsum(b - a)[:-1]])
+        p, v = self.points[idx], self.speeds[idx, None]
+        return (below32(np.minimum.reduceat(p - v, at, axis=0)),
+                above32(np.maximum.reduceat(p + v, at, axis=0)))  # fmt: skip
+
+    def _near_seams(self, width: int, live: np.ndarray, ends: tuple[int, int]) -> np.ndarray:
+        """Positions in ``live`` of the blocks that are seams or end windows in one."""
+        block, mask = self.seams(width)[:2]
+        if block.size == 0 or live.size == 0:
+            return np.empty(0, dtype=np.int64)
+        hit = mask[live].copy()
+        for off in range(ends[0], ends[1] + 1):
+            y = live + off
+            ok = (y >= 0) & (y < mask.size)
+            hit[ok] |= mask[y[ok]]
+        return np.flatnonzero(hit)
+
+    def _seam_chords(self, width: int, rows: np.ndarray,
+                     ends: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """:func:`._grid_bound.chord_boxes_at` of ``rows`` with each seam's own part: its
+        last primitive's box where it is the start block, its first's where an end block."""
+        block, mask, s_lo, s_hi, e_lo, e_hi = self.seams(width)
+        lo, hi = self.boxes(width)
+        nb = lo.shape[0]
+        a_lo, a_hi = lo[rows].astype(np.float64), hi[rows].astype(np.float64)
+        at = mask[rows]
+        j = np.searchsorted(block, rows[at])
+        a_lo[at], a_hi[at] = s_lo[j], s_hi[j]
+        end_lo = np.full_like(a_lo, np.inf)
+        end_hi = np.full_like(a_hi, -np.inf)
+        for off in range(ends[0], ends[1] + 1):
+            y = rows + off
+            ok = np.flatnonzero((y >= 0) & (y < nb))
+            y_lo, y_hi = lo[y[ok]].astype(np.float64), hi[y[ok]].astype(np.float64)
+            seam = mask[y[ok]]
+            j = np.searchsorted(block, y[ok][seam])
+            y_lo[seam], y_hi[seam] = e_lo[j], e_hi[j]
+            end_lo[ok] = np.minimum(end_lo[ok], y_lo)
+            end_hi[ok] = np.maximum(end_hi[ok], y_hi)
+        return end_lo - a_hi, end_hi - a_lo
 
     def count(self, width: int) -> int:
         """The number of blocks of ``width`` intervals."""
@@ -180,8 +257,8 @@ class StartBlocks:
 
     def radii(self, width: int) -> tuple[np.ndarray, np.ndarray]:
         """Per block of ``width`` intervals, the least and greatest chord length to the
-        blocks 3 to 7 on (:func:`._grid_bound.chord_radii`), in float32 rounded down and up,
-        kept."""
+        blocks 3 to 7 on (:func:`._grid_bound.chord_radii`; at and near seams, of each
+        seam's own parts: :meth:`seams`), in float32 rounded down and up, kept."""
         if width not in self._radius:
             lo, hi = self.boxes(width)
             nb = lo.shape[0]
@@ -190,6 +267,11 @@ class StartBlocks:
                 stop = min(nb, start + _CHUNK)
                 n64, f64 = chord_radii(*chord_boxes(lo, hi, 3, 7, start, stop))
                 near[start:stop], far[start:stop] = below32(n64), above32(f64)
+            seam = self._near_seams(width, np.arange(nb), (3, 7))  # each seam's own parts
+            if seam.size:
+                n64, f64 = chord_radii(*self._seam_chords(width, seam, (3, 7)))
+                near[seam] = np.maximum(near[seam], below32(n64))
+                far[seam] = np.minimum(far[seam], above32(f64))
             self._radius[width] = near, far
             order = np.argsort(near, kind="stable").astype(np.int32)
             self._order[width] = order, near[order]
