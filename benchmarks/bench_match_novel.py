@@ -283,16 +283,9 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
 def _rests_over_moving(spec: dict, new: dict, old: dict | None) -> None:
     """With rests: each case's CPU on a path with its rests over its CPU on the same path
     without them, path by path, and their median and worst."""
-    if not spec.get("rests"):
-        return
-    print(f"\nWith rests / without CPU, path by path (median, worst; the rests add "
-          f"{3 * REST} samples):")  # fmt: skip
-    for case in dict.fromkeys(label.partition(", ")[0] for label in spec["cases"]):
-        for tree, res in (("this tree", new), ("baseline", old)):
-            if res is None:
-                continue
-            still, moving = (res[f"{case}, {at}"]["cpu"] for at in RESTS)
-            print(f"- {case}, {tree}: {_ratios(still, moving, '{:.2f}x')}")
+    if spec.get("rests"):
+        _pair_ratios(spec, new, old, RESTS, "With rests / without CPU, path by path (median, "
+                     f"worst; the rests add {3 * REST} samples):")  # fmt: skip
 
 
 def _scaling(spec: dict, long: tuple, short: tuple) -> None:
@@ -314,15 +307,21 @@ def _scaling(spec: dict, long: tuple, short: tuple) -> None:
 def _unmatched_over_matched(spec: dict, new: dict, old: dict | None) -> None:
     """With noise: each case's CPU on a path at eps noise/2 (unmatched) over its CPU on the
     same path at eps 2x noise (matched), path by path, and their median and worst."""
-    if not spec.get("noise"):
-        return
-    print("\nUnmatched / matched CPU, path by path (median, worst):")
+    if spec.get("noise"):
+        pair = tuple(reversed(NOISE_EPS))  # unmatched over matched
+        _pair_ratios(spec, new, old, pair, "Unmatched / matched CPU, path by path (median, worst):")
+
+
+def _pair_ratios(spec: dict, new: dict, old: dict | None, pair: tuple, title: str) -> None:
+    """Each case's CPU as ``"case, pair[0]"`` over its CPU as ``"case, pair[1]"``, path by
+    path, in this tree and the baseline's, under ``title``."""
+    print(f"\n{title}")
     for case in dict.fromkeys(label.partition(", ")[0] for label in spec["cases"]):
         for tree, res in (("this tree", new), ("baseline", old)):
             if res is None:
                 continue
-            on, off = (res[f"{case}, {at}"]["cpu"] for at in NOISE_EPS)
-            print(f"- {case}, {tree}: {_ratios(off, on, '{:.2f}x')}")
+            top, bottom = (res[f"{case}, {at}"]["cpu"] for at in pair)
+            print(f"- {case}, {tree}: {_ratios(top, bottom, '{:.2f}x')}")
 
 
 def _ratios(top: list[float], bottom: list[float], fmt: str) -> str:

@@ -30,3 +30,18 @@ def random_primitive(rng, dt: float, n: int = 401) -> Trajectory:
     ctrl = np.cumsum(rng.normal(size=(m, 3)) * 10.0, axis=0)
     knots = np.concatenate([np.zeros(p), np.linspace(0, 1, m - p + 1), np.ones(p)])
     return Trajectory.from_definition(p, knots, ctrl, None, (n - 1) * dt)
+
+
+def smooth_walk(rng, n: int, speed: float, width: int = 15, rest: slice | None = None,
+                spread: float = 50.0) -> np.ndarray:  # fmt: skip
+    """A smooth random 3-D curve of n samples moving ~``speed`` a sample (random directions
+    smoothed over ``width`` samples), at rest over the samples ``rest``, at a random place
+    ~``spread`` from the origin."""
+    v = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    w = min(width, n)
+    v = np.apply_along_axis(lambda c: np.convolve(c, np.ones(w) / w, "same"), 0, v)
+    v /= np.linalg.norm(v, axis=1, keepdims=True) + 1e-12
+    pace = np.full((n, 1), speed)
+    if rest is not None:
+        pace[rest] = 0.0
+    return np.cumsum(v * pace, axis=0) + rng.normal(size=3) * spread

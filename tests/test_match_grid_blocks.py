@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from match_helpers import smooth_walk
 
 from primlib.match import BankIndex, segment_path
 from primlib.match._grid import GridSearch, _coefficient_table, _coefficients_at
@@ -34,14 +35,8 @@ K = 16
 def _walk(rng, n: int, speed: float, stop: bool = False) -> np.ndarray:
     """A smooth random 3-D curve of n samples moving ~``speed`` a sample; with ``stop``, at
     rest over its middle third."""
-    v = np.cumsum(rng.normal(size=(n, 3)), axis=0)
-    w = min(9, n)
-    v = np.apply_along_axis(lambda c: np.convolve(c, np.ones(w) / w, "same"), 0, v)
-    v /= np.linalg.norm(v, axis=1, keepdims=True) + 1e-12
-    pace = np.full((n, 1), speed)
-    if stop:
-        pace[n // 3 : 2 * n // 3] = 0.0
-    return np.cumsum(v * pace, axis=0) + rng.normal(size=3) * 20.0
+    return smooth_walk(rng, n, speed, width=9, rest=slice(n // 3, 2 * n // 3) if stop else None,
+                       spread=20.0)  # fmt: skip
 
 
 def _bank(rng, k: int = 6, n: int = 400) -> BankIndex:

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 from _reference_search import every_window_seeds
+from match_helpers import smooth_walk
 
 from primlib.match import BankIndex, kabsch
 from primlib.match._grid import GridSearch, _Query
@@ -32,14 +33,7 @@ def _rotation(rng, rotation: str) -> np.ndarray:
 def _walk(rng, n: int, speed: float, dwell: bool = False) -> np.ndarray:
     """A smooth random 3-D curve of n samples moving ~``speed`` a sample (a stop in the
     middle with ``dwell``)."""
-    v = np.cumsum(rng.normal(size=(n, 3)), axis=0)
-    width = min(15, n)
-    v = np.apply_along_axis(lambda c: np.convolve(c, np.ones(width) / width, "same"), 0, v)
-    v /= np.linalg.norm(v, axis=1, keepdims=True) + 1e-12
-    pace = np.full((n, 1), speed)
-    if dwell:
-        pace[n // 3 : n // 2] = 0.0
-    return np.cumsum(v * pace, axis=0) + rng.normal(size=3) * 50.0
+    return smooth_walk(rng, n, speed, rest=slice(n // 3, n // 2) if dwell else None)
 
 
 def _bank(rng, k: int = 6, n: int = 300, still: bool = True) -> BankIndex:
