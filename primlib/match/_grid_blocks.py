@@ -118,12 +118,13 @@ class StartBlocks:
         those bounds.
 
         Every block's bound is first that of its chords to the blocks 3 to 7 on (their
-        lengths' range, :meth:`radii`), on the blocks whose least length can be near enough
-        to |c_q| alone (a prefix of the blocks in its order: no pass over every block under
-        a tight limit); the blocks it leaves take
-        the larger of it and :func:`._grid_bound.box_gaps` of their chords to the 3 blocks
-        a window of this duration ends in (and their directions, under ``"none"``). Both
-        are over √(2K), bounds on ρ as the stretches' are (ρ ≥ g(c_w)/√(2K))."""
+        lengths' range, :meth:`radii`), taken only on the blocks whose least length can be
+        near enough to |c_q| (a prefix of the blocks in that order: under a tight limit no
+        pass over every block); the blocks it leaves take the larger of it and
+        :func:`._grid_bound.box_gaps` of their chords to the 3 blocks a window of this
+        duration ends in (and their directions, under ``"none"``; at and before a seam, its
+        own parts: :meth:`seams`). Both are over √(2K), bounds on ρ as the stretches' are
+        (ρ ≥ g(c_w)/√(2K))."""
         fd = math.floor(dur)
         width = self.width(dur)
         near, far = self.radii(width)
