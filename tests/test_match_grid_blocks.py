@@ -18,7 +18,6 @@ from primlib.match._grid_bound import (
     block_boxes,
     box_gaps,
     chord_boxes,
-    chord_boxes_at,
     chord_radii,
     endpoint_gap,
     halved_boxes,
@@ -75,11 +74,6 @@ def test_a_blocks_bounds_are_below_every_window_that_starts_in_it(rotation):
                 lo, hi = halved_boxes(lo, hi)
             span = ((fd - 1) // width, 1 + fd // width)  # the blocks a window ends in
             exact = box_gaps(*chord_boxes(lo, hi, *span), q_chord, rotation) / root
-            rows = np.arange(0, lo.shape[0], 3)
-            np.testing.assert_array_equal(
-                box_gaps(*chord_boxes_at(lo, hi, *span, rows), q_chord, rotation) / root,
-                exact[rows],
-            )
             near, far = chord_radii(*chord_boxes(lo, hi, 3, 7))
             length = np.linalg.norm(q_chord)
             wide = np.maximum(np.maximum(near - length, length - far), 0.0) / root
@@ -96,13 +90,23 @@ def test_a_blocks_bounds_are_below_every_window_that_starts_in_it(rotation):
             # least as large; under a limit, those whose bound is not beyond it
             grid.few = 0
             starts = grid._start_blocks(sc)
-            _, live, bound = starts.bounds(sc.dur, q_chord, rotation, K, math.inf, 0.0, 0.0)
+            live, bound = starts.bounds(sc.dur, q_chord, rotation, K, math.inf, 0.0, 0.0)
             assert live.tolist() == list(range(near.size))
             assert np.all(g >= bound[block] - 1e-12)
             limit = float(np.quantile(bound, 0.3))
-            _, some, below = starts.bounds(sc.dur, q_chord, rotation, K, limit, 0.0, 0.0)
+            some, below = starts.bounds(sc.dur, q_chord, rotation, K, limit, 0.0, 0.0)
             np.testing.assert_array_equal(some, live[~beyond(bound, limit, 0.0, 0.0)])
             np.testing.assert_array_equal(below, bound[some])
+            # the gathered chords (a few blocks' bounds): the sliced ones, but at and before
+            # a seam, whose own parts raise the bound and still hold every window
+            rows = np.arange(0, near.size, 3)
+            gathered = box_gaps(*starts._chords_at(width, rows, span), q_chord, rotation) / root
+            seam = np.zeros(rows.size, dtype=bool)
+            seam[starts._near_seams(width, rows, span)] = True
+            np.testing.assert_array_equal(gathered[~seam], exact[rows][~seam])
+            assert np.all(gathered >= exact[rows])
+            at = np.flatnonzero(block % 3 == 0)
+            assert np.all(g[at] >= gathered[block[at] // 3] - 1e-12)
 
 
 def test_a_seams_boxes_hold_its_last_primitives_starts_and_its_firsts_ends():
@@ -131,12 +135,13 @@ def test_a_seams_boxes_hold_its_last_primitives_starts_and_its_firsts_ends():
             assert np.all(e_hi[j] >= high[first].max(axis=0))
     # and they bound: a seam's union box spans two primitives apart, its own parts less
     for dur in (40.0, 130.0):
-        width, live, bound = starts.bounds(dur, np.zeros(3), "full", K, math.inf, 0.0, 0.0)
+        live, bound = starts.bounds(dur, np.zeros(3), "full", K, math.inf, 0.0, 0.0)
+        width = starts.width(dur)
         block = starts.seams(width)[0]
         fd = math.floor(dur)
         span = ((fd - 1) // width, 1 + fd // width)
-        union = box_gaps(*chord_boxes_at(*starts.boxes(width), *span, block), np.zeros(3),
-                         "full") / math.sqrt(2 * K)  # fmt: skip
+        c_lo, c_hi = chord_boxes(*starts.boxes(width), *span)
+        union = box_gaps(c_lo[block], c_hi[block], np.zeros(3), "full") / math.sqrt(2 * K)
         own = bound[np.searchsorted(live, block)]
         assert np.all(own >= union) and np.any(own > union + 1e-3)
 

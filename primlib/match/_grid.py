@@ -36,13 +36,12 @@ Two more prunings leave the seeds as they are. On a scale of many windows the st
 in blocks, each with one bound on the chords of the windows starting in it
 (:mod:`._grid_blocks`): a few blocks whose chords are nearest the query's are searched first,
 and the others only where their bound is not beyond the limit that leaves, none resampled
-before. And the
-scales are searched under a cap taken from the pool so far (:meth:`GridSearch.seeds`): a
-window scoring above the ``seeds``-th candidate the suppression keeps is not among the picks
-unless a later candidate suppresses earlier ones, which is checked, and then the scales are
-searched again without caps. A piece at rest (a path that stops: a piece the index cannot
-place) against 1,000 primitives scored ~80,000 windows and took 1.4 s; with both ~300 and
-0.13-0.17 s (``benchmarks/bench_match_novel.py --rests``).
+before. And the scales are searched under a cap taken from the pool so far
+(:meth:`GridSearch.seeds`): a window scoring above the ``seeds``-th candidate the suppression
+keeps is not among the picks unless a later candidate suppresses earlier ones, which is
+checked, and then the scales are searched again without caps. A piece at rest (a path that
+stops: a piece the index cannot place) against 1,000 primitives scored ~80,000 windows and
+took 1.4 s; with both ~300 and 0.13-0.17 s (``benchmarks/bench_match_novel.py --rests``).
 
 The index search falls back on it for (nearly) stationary or very short pieces; the tests
 and benchmarks also run it on whole paths as the exhaustive reference.
@@ -317,38 +316,37 @@ class GridSearch:
             return best
         width = starts.width(sc.dur)
         if cap < math.inf:  # the blocks the cap leaves, the 64 of the smallest bounds first
-            _, live, bound = self._block_bounds(starts, sc, query, cap, slack)
+            live, bound = self._block_bounds(starts, sc, query, cap, slack)
             if live.size <= _HEAD:
-                part = runs(live, width, self.bank.offsets, sc)
-                if part is not None:
-                    self._best_first(part, query, eps, slack, cap, best)
+                self._best_first(runs(live, width, self.bank.offsets, sc), query, eps, slack,
+                                 cap, best)  # fmt: skip
                 return best
             first = np.sort(live[np.argpartition(bound, _HEAD - 1)[:_HEAD]])
         else:
             first = starts.head(sc.dur, query.chord, self.opts.rotation, _HEAD)
         head = runs(first, width, self.bank.offsets, sc)
-        if head is not None:
-            self._best_first(head, query, eps, slack, cap, best)
+        self._best_first(head, query, eps, slack, cap, best)
         limit = min(best.limit(), cap)
         if cap < math.inf:
             live = live[~beyond(bound, limit, query.rg, slack)]
         else:
-            _, live, _ = self._block_bounds(starts, sc, query, limit, slack)
+            live, _ = self._block_bounds(starts, sc, query, limit, slack)
         live = live[~np.isin(live, first)]
         if live.size > starts.count(width) // 4:  # blocks prove little: all but the head
             rest = without(sc, head)
         else:
             rest = runs(live, width, self.bank.offsets, sc)
-        if rest is not None:
-            self._best_first(rest, query, eps, slack, cap, best)
+        self._best_first(rest, query, eps, slack, cap, best)
         return best
 
-    def _best_first(self, sc: _Scale, query: _Query, eps: float, slack: float, cap: float,
-                    best: Best) -> None:  # fmt: skip
-        """Offer ``best`` the windows of ``sc`` below their gates and ``cap``: stretches of
-        windows best-first by their lower bound (:meth:`_stretches`) until the next one's
-        bound passes the ``top``-th best RMSD found (:class:`._grid_bound.Best`), ``cap`` or
-        its stretch's gate."""
+    def _best_first(self, sc: _Scale | None, query: _Query, eps: float, slack: float,
+                    cap: float, best: Best) -> None:  # fmt: skip
+        """Offer ``best`` the windows of ``sc`` (None: none) below their gates and ``cap``:
+        stretches of windows best-first by their lower bound (:meth:`_stretches`) until the
+        next one's bound passes the ``top``-th best RMSD found (:class:`._grid_bound.Best`),
+        ``cap`` or its stretch's gate."""
+        if sc is None:
+            return
         st = self._stretches(sc, query, eps)
         left = np.flatnonzero(~beyond(st.bound, st.gate, query.rg, slack))
         size = 64 if st.s > 1 else 256  # few windows: most in the first batch
@@ -374,7 +372,7 @@ class GridSearch:
         return self._starts
 
     def _block_bounds(self, starts: StartBlocks, sc: _Scale, query: _Query, limit: float,
-                      slack: float) -> tuple[int, np.ndarray, np.ndarray]:  # fmt: skip
+                      slack: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """:meth:`._grid_blocks.StartBlocks.bounds` for the scale and query."""
         return starts.bounds(sc.dur, query.chord, self.opts.rotation, self.opts.grid_points,
                              limit, query.rg, slack)  # fmt: skip

@@ -44,7 +44,6 @@ from primlib.match._grid_bound import (
     block_boxes,
     box_gaps,
     chord_boxes,
-    chord_boxes_at,
     chord_radii,
     halved_boxes,
     spare,
@@ -111,11 +110,17 @@ class StartBlocks:
         fd = math.floor(dur)
         return None if fd < 7 else 1 << int(math.log2((fd - 1) / 3.0))
 
+    def ends(self, dur: float) -> tuple[int, int]:
+        """The blocks on (first, last) from a window's start block in which a window of
+        duration ``dur`` ends (``_grid_bound``, *Block bound*)."""
+        fd, width = math.floor(dur), self.width(dur)
+        return (fd - 1) // width, 1 + fd // width
+
     def bounds(self, dur: float, q_chord: np.ndarray, rotation: str, k: int, limit: float,
-               rg_q: float, slack: float) -> tuple[int, np.ndarray, np.ndarray]:  # fmt: skip
-        """For windows of duration ``dur`` (7 samples or more) and K = ``k`` points: W, the
-        blocks whose bound on ρ is not beyond ``limit`` (:func:`._grid_bound.beyond`) and
-        those bounds.
+               rg_q: float, slack: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """For windows of duration ``dur`` (7 samples or more) and K = ``k`` points: the
+        blocks of :meth:`width` whose bound on ρ is not beyond ``limit``
+        (:func:`._grid_bound.beyond`), in block order, and those bounds.
 
         Every block's bound is first that of its chords to the blocks 3 to 7 on (their
         lengths' range, :meth:`radii`), taken only on the blocks whose least length can be
@@ -125,7 +130,6 @@ class StartBlocks:
         duration ends in (and their directions, under ``"none"``; at and before a seam, its
         own parts: :meth:`seams`). Both are over √(2K), bounds on ρ as the stretches' are
         (ρ ≥ g(c_w)/√(2K))."""
-        fd = math.floor(dur)
         width = self.width(dur)
         near, far = self.radii(width)
         root = math.sqrt(2.0 * k)
@@ -143,11 +147,11 @@ class StartBlocks:
         keep = np.flatnonzero(~beyond(wide, limit, rg_q, slack))
         keep = keep[np.argsort(rows[keep])]  # in block order
         live, wide = rows[keep], wide[keep]
-        lo, hi = self.boxes(width)
-        ends = ((fd - 1) // width, 1 + fd // width)
+        ends = self.ends(dur)
         if live.size <= near.size // _GATHER:
-            gap = box_gaps(*chord_boxes_at(lo, hi, *ends, live), q_chord, rotation)
-        else:  # many: by slices, a chunk of blocks at a time
+            gap = box_gaps(*self._chords_at(width, live, ends), q_chord, rotation)
+        else:  # many: by slices, a chunk of blocks at a time, then each seam's own parts
+            lo, hi = self.boxes(width)
             gap = np.empty(live.size)
             cuts = np.searchsorted(live, np.arange(0, near.size + _CHUNK, _CHUNK))
             for j, (c0, c1) in enumerate(zip(cuts[:-1], cuts[1:], strict=True)):
@@ -156,13 +160,13 @@ class StartBlocks:
                     c_lo, c_hi = chord_boxes(lo, hi, *ends, start, min(start + _CHUNK, near.size))
                     at = live[c0:c1] - start
                     gap[c0:c1] = box_gaps(c_lo[at], c_hi[at], q_chord, rotation)
-        fix = self._near_seams(width, live, ends)
-        if fix.size:  # where primitives meet: each block's own primitive's part, as a start
-            c_lo, c_hi = self._seam_chords(width, live[fix], ends)
-            gap[fix] = np.maximum(gap[fix], box_gaps(c_lo, c_hi, q_chord, rotation))
+            fix = self._near_seams(width, live, ends)
+            if fix.size:
+                c_lo, c_hi = self._chords_at(width, live[fix], ends)
+                gap[fix] = np.maximum(gap[fix], box_gaps(c_lo, c_hi, q_chord, rotation))
         bound = np.maximum(gap / root, wide)
         keep = ~beyond(bound, limit, rg_q, slack)
-        return width, live[keep], bound[keep]
+        return live[keep], bound[keep]
 
     def seams(self, width: int) -> tuple[np.ndarray, ...]:
         """The blocks of ``width`` intervals where a primitive starts inside (sorted), a mask
@@ -211,10 +215,11 @@ class StartBlocks:
             hit[ok] |= mask[y[ok]]
         return np.flatnonzero(hit)
 
-    def _seam_chords(self, width: int, rows: np.ndarray,
-                     ends: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """:func:`._grid_bound.chord_boxes_at` of ``rows`` with each seam's own part: its
-        last primitive's box where it is the start block, its first's where an end block."""
+    def _chords_at(self, width: int, rows: np.ndarray,
+                   ends: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """:func:`._grid_bound.chord_boxes` of the blocks ``rows`` alone (gathered), each
+        seam with its own part: its last primitive's box where it is the start block, its
+        first's where an end block (:meth:`seams`)."""
         block, mask, s_lo, s_hi, e_lo, e_hi = self.seams(width)
         lo, hi = self.boxes(width)
         nb = lo.shape[0]
@@ -249,9 +254,7 @@ class StartBlocks:
         at = int(np.searchsorted(ranked, float(np.linalg.norm(q_chord))))
         lo = max(0, min(at - 4 * n, order.size - 8 * n))
         rows = np.sort(order[lo : lo + 8 * n])
-        fd = math.floor(dur)
-        ends = ((fd - 1) // width, 1 + fd // width)
-        gap = box_gaps(*chord_boxes_at(*self.boxes(width), *ends, rows), q_chord, rotation)
+        gap = box_gaps(*self._chords_at(width, rows, self.ends(dur)), q_chord, rotation)
         if gap.size > n:
             rows = np.sort(rows[np.argpartition(gap, n - 1)[:n]])
         return rows
@@ -270,7 +273,7 @@ class StartBlocks:
                 near[start:stop], far[start:stop] = below32(n64), above32(f64)
             seam = self._near_seams(width, np.arange(nb), (3, 7))  # each seam's own parts
             if seam.size:
-                n64, f64 = chord_radii(*self._seam_chords(width, seam, (3, 7)))
+                n64, f64 = chord_radii(*self._chords_at(width, seam, (3, 7)))
                 near[seam] = np.maximum(near[seam], below32(n64))
                 far[seam] = np.minimum(far[seam], above32(f64))
             self._radius[width] = near, far

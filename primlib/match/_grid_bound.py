@@ -77,7 +77,6 @@ __all__ = [
     "below32",
     "above32",
     "chord_boxes",
-    "chord_boxes_at",
     "chord_radii",
     "box_gaps",
     "spare",
@@ -211,18 +210,6 @@ def chord_boxes(lo: np.ndarray, hi: np.ndarray, first: int, last: int, start: in
             np.maximum(end_hi[a - start : b - start], hi[a + off : b + off],
                        out=end_hi[a - start : b - start])  # fmt: skip
     return end_lo - hi[start:stop], end_hi - lo[start:stop]
-
-
-def chord_boxes_at(lo: np.ndarray, hi: np.ndarray, first: int, last: int,
-                   rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """:func:`chord_boxes` of the blocks ``rows`` alone (gathered)."""
-    nb = lo.shape[0]
-    y = rows[:, None] + np.arange(first, last + 1)
-    inside = ((y >= 0) & (y < nb))[..., None]
-    y = np.clip(y, 0, nb - 1)
-    end_lo = np.where(inside, lo[y], np.inf).min(axis=1)
-    end_hi = np.where(inside, hi[y], -np.inf).max(axis=1)
-    return end_lo - hi[rows].astype(np.float64), end_hi - lo[rows].astype(np.float64)
 
 
 def chord_radii(c_lo: np.ndarray, c_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
