@@ -10,7 +10,7 @@ from match_helpers import smooth_walk
 
 from primlib.match import BankIndex, segment_path
 from primlib.match._grid import GridSearch, _coefficient_table, _coefficients_at
-from primlib.match._grid_blocks import Scale, StartBlocks, runs, without
+from primlib.match._grid_blocks import Scale, StartBlocks, _in_block_order, runs, without
 from primlib.match._grid_bound import (
     above32,
     below32,
@@ -93,10 +93,11 @@ def test_a_blocks_bounds_are_below_every_window_that_starts_in_it(rotation):
             live, bound = starts.bounds(sc.dur, q_chord, rotation, K, math.inf, 0.0, 0.0)
             assert live.tolist() == list(range(near.size))
             assert np.all(g >= bound[block] - 1e-12)
-            limit = float(np.quantile(bound, 0.3))
-            some, below = starts.bounds(sc.dur, q_chord, rotation, K, limit, 0.0, 0.0)
-            np.testing.assert_array_equal(some, live[~beyond(bound, limit, 0.0, 0.0)])
-            np.testing.assert_array_equal(below, bound[some])
+            for part in (0.02, 0.3, 0.8):  # few blocks (sorted), some (a mask), most (all)
+                limit = float(np.quantile(bound, part))
+                some, below = starts.bounds(sc.dur, q_chord, rotation, K, limit, 0.0, 0.0)
+                np.testing.assert_array_equal(some, live[~beyond(bound, limit, 0.0, 0.0)])
+                np.testing.assert_array_equal(below, bound[some])
             # the gathered chords (a few blocks' bounds): the sliced ones, but at and before
             # a seam, whose own parts raise the bound and still hold every window
             rows = np.arange(0, near.size, 3)
@@ -107,6 +108,19 @@ def test_a_blocks_bounds_are_below_every_window_that_starts_in_it(rotation):
             assert np.all(gathered >= exact[rows])
             at = np.flatnonzero(block % 3 == 0)
             assert np.all(g[at] >= gathered[block[at] // 3] - 1e-12)
+
+
+@pytest.mark.parametrize("share", [0.01, 0.2, 0.9])
+def test_kept_blocks_come_in_block_order_with_their_values(share):
+    rng = np.random.default_rng(int(share * 100))
+    count = 5000
+    rows = rng.permutation(count)[: count // 2]  # a prefix of the blocks in some order
+    values = rng.normal(size=rows.size)
+    keep = rng.random(rows.size) < share  # few: sorted; more: through a mask of all blocks
+    live, kept = _in_block_order(rows, values, keep, count)
+    order = np.argsort(rows[keep])
+    np.testing.assert_array_equal(live, rows[keep][order])
+    np.testing.assert_array_equal(kept, values[keep][order])
 
 
 def test_a_seams_boxes_hold_its_last_primitives_starts_and_its_firsts_ends():

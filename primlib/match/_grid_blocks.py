@@ -15,13 +15,14 @@ so that a window ends 3 to 7 blocks on (neighbouring boxes touch: a chord to the
 may be 0): a block's bound is within about two blocks' motion of the chords' own. Scales of
 windows shorter than 7 samples (W would be 1) are searched whole: their blocks would hold
 as many bytes as the bank and bound little. Per W the boxes, the chords' length range to the
-blocks 3 to 7 on (float32, rounded outwards) and the blocks' order by its least length are
-kept, 44 bytes a block, formed a chunk of blocks at a time (on 1,000 primitives of 2,000
-samples 44 MB at W = 2, half that at each width after).
+blocks 3 to 7 on (float32, rounded outwards) and the blocks' order by its least length
+(with the ranges in that order) are kept, 48 bytes a block, formed a chunk of blocks at a
+time (on 1,000 primitives of 2,000 samples 48 MB at W = 2, half that at each width after).
 
 :class:`StartBlocks` gives a scale's blocks not beyond a limit and their bounds: the blocks
-whose least chord length can be near enough to the query's, a prefix of them in that order,
-bounded by the length range, then the blocks that leave by the box of this duration's 3.
+whose least chord length can be near enough to the query's, a prefix of them in that order
+(or, where that is most blocks, all of them in block order: no gather and no sort), bounded
+by the length range, then the blocks that leave by the box of this duration's 3.
 :func:`runs` turns a set of blocks into the runs of windows m0, ..., m0 + n − 1 that start
 in them, by the computed m·h every resampling takes, so that every window is in exactly one
 block and disjoint sets of blocks never share a window (:func:`without`: a scale less some
@@ -137,16 +138,16 @@ class StartBlocks:
         # the blocks whose chords can be short enough: a prefix of them by their least
         # length (its bound rounded up to float32, so no such block is left out)
         reach = root * (float(spare(limit, rg_q)) + slack) * (1.0 + 1e-9) + length
-        order, ranked = self._order[width]
-        rows = order[: np.searchsorted(ranked, above32(np.array([reach]))[0], side="right")]
-        wide = near[rows].astype(np.float64) - length
-        if length > 0.0:
-            np.maximum(wide, length - far[rows].astype(np.float64), out=wide)
-        np.maximum(wide, 0.0, out=wide)
-        wide /= root
-        keep = np.flatnonzero(~beyond(wide, limit, rg_q, slack))
-        keep = keep[np.argsort(rows[keep])]  # in block order
-        live, wide = rows[keep], wide[keep]
+        order, ranked, far_ranked = self._order[width]
+        n = int(np.searchsorted(ranked, above32(np.array([reach]))[0], side="right"))
+        if 2 * n > near.size:  # most: every block in block order (those past the prefix
+            wide = _radius_gaps(near, far, length, root)  # are beyond the limit too)
+            live = np.flatnonzero(~beyond(wide, limit, rg_q, slack))
+            wide = wide[live]
+        else:  # (the prefix's length ranges: slices of the ranked copies, no gather)
+            wide = _radius_gaps(ranked[:n], far_ranked[:n], length, root)
+            live, wide = _in_block_order(order[:n], wide, ~beyond(wide, limit, rg_q, slack),
+                                         near.size)  # fmt: skip
         ends = self.ends(dur)
         if live.size <= near.size // _GATHER:
             gap = box_gaps(*self._chords_at(width, live, ends), q_chord, rotation)
@@ -250,7 +251,7 @@ class StartBlocks:
         for a piece at rest), the n of the smallest bounds of :meth:`bounds`."""
         width = self.width(dur)
         self.radii(width)
-        order, ranked = self._order[width]
+        order, ranked, _ = self._order[width]
         at = int(np.searchsorted(ranked, float(np.linalg.norm(q_chord))))
         lo = max(0, min(at - 4 * n, order.size - 8 * n))
         rows = np.sort(order[lo : lo + 8 * n])
@@ -278,7 +279,7 @@ class StartBlocks:
                 far[seam] = np.minimum(far[seam], above32(f64))
             self._radius[width] = near, far
             order = np.argsort(near, kind="stable").astype(np.int32)
-            self._order[width] = order, near[order]
+            self._order[width] = order, near[order], far[order]
         return self._radius[width]
 
     def boxes(self, width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -290,6 +291,31 @@ class StartBlocks:
             else:
                 self._box[width] = halved_boxes(*self.boxes(width // 2))
         return self._box[width]
+
+
+def _radius_gaps(near: np.ndarray, far: np.ndarray, length: float, root: float) -> np.ndarray:
+    """The distance of ``length`` from each range [near, far] of chord lengths, over ``root``."""
+    wide = near.astype(np.float64) - length
+    if length > 0.0:
+        np.maximum(wide, length - far.astype(np.float64), out=wide)
+    np.maximum(wide, 0.0, out=wide)
+    wide /= root
+    return wide
+
+
+def _in_block_order(rows: np.ndarray, values: np.ndarray, keep: np.ndarray,
+                    count: int) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The blocks ``rows[keep]`` (distinct, of ``count`` blocks) in block order, with their
+    ``values``: by a sort where they are few, else by a mask over every block (no sort of
+    a large part of a million blocks)."""
+    at = np.flatnonzero(keep)
+    if at.size * 16 < count:
+        at = at[np.argsort(rows[at])]
+        return rows[at], values[at]
+    slot = np.full(count, -1, dtype=np.int32)
+    slot[rows[at]] = at
+    live = np.flatnonzero(slot >= 0)
+    return live, values[slot[live]]
 
 
 def runs(live: np.ndarray, width: int, offsets: np.ndarray, sc: Scale) -> Scale | None:
