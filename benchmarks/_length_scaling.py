@@ -7,7 +7,12 @@ Two kinds of path, both on the machine's dt grid:
   of 40-100 % of it, time-scaled by 0.6-1.7, rotated at random) joined end to start;
 * ``novel``: a smooth random 3-D walk the library does not hold (``bench_match_novel``'s
   paths: a clamped cubic B-spline through a random walk of control points, one per 200
-  samples).
+  samples);
+* ``rests`` (``bench_match.py --length ... --rests``): the same walk held still 3 times per
+  2,400 samples for ``rest`` samples (200, 1 s on the bundled machine: dwells of a part
+  program; ``bench_match_novel._with_rests``), the walk shortened so the path has the same
+  samples. A piece at rest has no arc length for the index: the time-uniform grid searches
+  it (``primlib/match/_grid.py``).
 
 Each (kind, length) runs in its own subprocess, so its peak resident memory
 (``ru_maxrss``: the interpreter, numpy and the library included) is the match's alone.
@@ -31,7 +36,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
-__all__ = ["composed_path", "novel_path", "worker", "run", "bank_of"]
+__all__ = ["composed_path", "novel_path", "rest_path", "worker", "run", "bank_of"]
 
 
 def bank_of(kind: str):
@@ -75,13 +80,29 @@ def novel_path(n: int, dt: float, seed: int) -> np.ndarray:
     return path.at(np.linspace(0.0, 1.0, n))
 
 
+def rest_path(n: int, dt: float, seed: int, rest: int = 200) -> np.ndarray:
+    """``n`` samples of :func:`novel_path`'s walk (shortened) with 3 rests of ``rest``
+    samples per 2,400 (at least 3), shape (n, 3)."""
+    from bench_match_novel import _with_rests
+
+    rests = 3 * max(1, n // 2400)
+    if rests * rest >= n:
+        raise ValueError(f"{rests} rests of {rest} samples leave no motion in {n} samples")
+    return _with_rests(novel_path(n - rests * rest, dt, seed), rests, rest)
+
+
 def worker(spec: dict) -> dict:
     """Match one path of ``spec`` (kind, samples, library, seed); JSON-able figures."""
     from primlib.match import BankIndex, segment_path
 
     bank, dt = bank_of(spec["library"])
     n, seed = int(spec["samples"]), int(spec.get("seed", 0))
-    pts = composed_path(bank, n, seed) if spec["kind"] == "composed" else novel_path(n, dt, seed)
+    if spec["kind"] == "composed":
+        pts = composed_path(bank, n, seed)
+    elif spec["kind"] == "rests":
+        pts = rest_path(n, dt, seed, int(spec.get("rest", 200)))
+    else:
+        pts = novel_path(n, dt, seed)
     extent = float(np.sqrt(((pts - pts.mean(axis=0)) ** 2).sum(axis=1)).max())
     eps = 3e-4 * extent  # primlib.defaults.EPS_FRACTION of the extent, as match's default
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

@@ -31,7 +31,8 @@ bundled library and ``data/paths/glyph-chain.csv``, the per-axis bound beside th
 rotation-invariant one; ``--length 2400 24000 100000 [--baseline REV]`` instead times
 composed and novel paths of those lengths against the bundled library, each in its own
 process with its peak memory, the ratios to the first length beside the goals, and with
-``--baseline`` the same paths matched by revision REV's primlib — ``_length_scaling.py``;
+``--baseline`` the same paths matched by revision REV's primlib, with ``--rests`` the novel
+paths also held still 3 times per 2,400 samples (dwells) — ``_length_scaling.py``;
 ``--index [--baseline REV]`` only the index row, on 1,000 random primitives (with the
 build also timed with revision REV); ``--composed [--baseline REV] [--rounds N]``
 only the composed path's first and warm calls at 1,000 primitives, this tree and revision
@@ -125,10 +126,11 @@ def restricted(machine: Machine) -> None:
 
 
 def length_scaling(lengths: list[int], library: str = "bundled", timeout: float = 1800.0,
-                   baseline: Path | None = None):  # fmt: skip
-    """``--length``: composed and novel paths of each length (``_length_scaling.py``), one
-    process each; time and peak memory, each kind's ratio to its first length, and (with
-    ``baseline``, a tree holding another revision's ``primlib``) the same run there."""
+                   baseline: Path | None = None, rests: bool = False):  # fmt: skip
+    """``--length``: composed and novel paths of each length (``_length_scaling.py``; with
+    ``rests``, also the novel paths held still: its kind ``rests``), one process each; time
+    and peak memory, each kind's ratio to its first length, and (with ``baseline``, a tree
+    holding another revision's ``primlib``) the same run there."""
     print(f"\nmatch time and peak memory against path length ({library} library; first call, "
           "one process per path: peak RSS includes the interpreter and numpy)")  # fmt: skip
     print("| path | samples | time | segments | matched | peak RSS | time / first length "
@@ -136,7 +138,7 @@ def length_scaling(lengths: list[int], library: str = "bundled", timeout: float 
           )  # fmt: skip
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     rows = []
-    for kind in ("composed", "novel"):
+    for kind in ("composed", "novel") + (("rests",) if rests else ()):
         first = None
         for n in lengths:
             spec = {"kind": kind, "samples": n, "library": library}
@@ -254,6 +256,12 @@ def main() -> None:
         help="only the path-length study: composed and novel paths of these lengths",
     )
     ap.add_argument(
+        "--rests",
+        action="store_true",
+        help="with --length: also the novel paths held still 3 times per 2,400 samples for "
+        "1 s each (the same samples: dwells)",
+    )
+    ap.add_argument(
         "--baseline",
         metavar="REV",
         help="with --length: also run each path with git revision REV's primlib; with "
@@ -299,7 +307,7 @@ def main() -> None:
             base = None
             if args.baseline:
                 base = extract(args.baseline, folder)
-            length_scaling(args.length, baseline=base)
+            length_scaling(args.length, baseline=base, rests=args.rests)
         if args.baseline:
             print(f"baseline: git revision {args.baseline}")
         return

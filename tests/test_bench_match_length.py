@@ -31,6 +31,22 @@ def test_length_study_matches_composed_and_novel_paths_in_own_processes(modules)
     assert novel["segments"] >= 1 and 0.0 <= novel["matched"] <= 1.0
 
 
+def test_a_path_with_rests_holds_still_where_it_says_and_is_matched_whole(modules):
+    length, _ = modules
+    bank, dt = length.bank_of("bundled")
+    pts = length.rest_path(600, dt, seed=0, rest=40)
+    assert pts.shape == (600, 3) and np.all(np.isfinite(pts))
+    still = np.all(np.diff(pts, axis=0) == 0.0, axis=1)
+    assert still.sum() == 3 * 40  # 3 rests: a sample held for 40 more each
+    # less the held samples, the same walk, shortened to leave the path its samples
+    moving = length.novel_path(600 - 3 * 40, dt, seed=0)
+    np.testing.assert_array_equal(pts[np.insert(~still, 0, True)], moving)
+    with pytest.raises(ValueError, match="no motion"):
+        length.rest_path(600, dt, seed=0, rest=200)
+    r = length.run({"kind": "rests", "samples": 600, "rest": 40, "library": "bundled"})
+    assert r["cuts"][-1][0] == pytest.approx(1.0) and r["segments"] >= 3
+
+
 def test_composed_path_is_made_of_stored_pieces(modules):
     length, _ = modules
     bank, dt = length.bank_of("bundled")
