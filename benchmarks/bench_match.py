@@ -256,6 +256,13 @@ def main() -> None:
         help="only the path-length study: composed and novel paths of these lengths",
     )
     ap.add_argument(
+        "--library",
+        choices=("bundled", "random-1000"),
+        default="bundled",
+        help="with --length: the library matched against (default bundled; random-1000: "
+        "bench_match_novel's 1,000 random primitives)",
+    )
+    ap.add_argument(
         "--rests",
         action="store_true",
         help="with --length: also the novel paths held still 3 times per 2,400 samples for "
@@ -307,7 +314,7 @@ def main() -> None:
             base = None
             if args.baseline:
                 base = extract(args.baseline, folder)
-            length_scaling(args.length, baseline=base, rests=args.rests)
+            length_scaling(args.length, library=args.library, baseline=base, rests=args.rests)
         if args.baseline:
             print(f"baseline: git revision {args.baseline}")
         return
