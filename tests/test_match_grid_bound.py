@@ -7,10 +7,19 @@ import numpy as np
 import pytest
 from _reference_search import every_window_seeds
 from match_helpers import smooth_walk
+from numpy.lib.stride_tricks import sliding_window_view
 
 from primlib.match import BankIndex, kabsch
+from primlib.match._bounds import gyration_bound
 from primlib.match._grid import GridSearch, _Query
-from primlib.match._grid_bound import Best, beyond, endpoint_gap, speed_bounds
+from primlib.match._grid_bound import (
+    Best,
+    beyond,
+    endpoint_gap,
+    gyration_below,
+    speed_bounds,
+    window_energies,
+)
 from primlib.match._interp import cubic_at
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import PathPiece, SearchOptions
@@ -190,3 +199,28 @@ def test_a_bound_is_beyond_a_limit_only_past_the_round_off_margin():
     assert beyond(np.array([0.1001]), 0.1, 1.0, 0.0)[0]
     assert not beyond(np.array([0.1001]), 0.1, 1.0, 1e-3)[0]  # within the chords' slack
     assert beyond(np.array([1.0]), math.inf, 1.0, 0.0).tolist() == [False]
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e3])
+def test_stretch_energies_hold_the_centred_ones_and_their_gyration_bound(offset):
+    # stretches of 20 points, far from the origin or not, moving fast, slowly or not at all:
+    # the energies from running sums lie within their margin of the windows centred on their
+    # own means (as GridSearch._score takes them), and the bound from that interval is below
+    # the radius-of-gyration bound the centred energies give
+    rng = np.random.default_rng(7 + int(offset))
+    speed = np.array([0.0, 1e-9, 1e-4, 0.3])[rng.integers(0, 4, 240)]
+    steps = rng.normal(size=(240, 20, 3)) * speed[:, None, None]
+    rows = offset + rng.normal(size=(240, 1, 3)) + np.cumsum(steps, axis=1)
+    energy, err = window_energies(rows, K, float(np.abs(rows).max()))
+    win = sliding_window_view(rows, K, axis=1)  # (n, 5, 3, K)
+    win = win - win.mean(axis=3, keepdims=True)
+    centred = np.einsum("ntdk,ntdk->nt", win, win)
+    assert energy.shape == centred.shape == (240, 5)
+    assert np.all(np.abs(energy - centred) <= err)
+    for q_energy in (0.0, float(np.median(centred)), 10.0 * float(centred.max())):
+        exact = gyration_bound(centred.ravel(), q_energy, K).reshape(centred.shape)
+        below = gyration_below(energy, err, q_energy, K)
+        assert np.all(below <= exact)
+        # and not much below: within the margin's effect where the energy is well above it
+        tight = energy > 1e3 * err
+        assert np.allclose(below[tight], exact[tight], rtol=1e-6, atol=1e-9 * (1 + offset))

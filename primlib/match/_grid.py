@@ -26,11 +26,15 @@ to a third of D, and s = 1 on a scale of few windows, whose anchors are then eve
 points and its bound the window's own). A
 stretch whose bound is beyond its gate, or beyond the scale's ``8·seeds``-th best RMSD found
 so far (stretches taken smallest bound first), cannot enter the pool: it is dropped, with a
-margin for round-off (:func:`._grid_bound.beyond`). The windows of the others are resampled;
-their own endpoint bound and the radius-of-gyration bound
-(:func:`primlib.match._bounds.gyration_bound`) drop more, and the rest are centred each on
-its own mean and scored by ``rmsd_from_moments`` (no rotation formed). The seeds are those
-of scoring every window so (``benchmarks/_reference_search.every_window_seeds``).
+margin for round-off (:func:`._grid_bound.beyond`). The windows of the others are resampled
+in two passes: first the points where they start and end, whose own endpoint bound drops
+more (about two thirds of them at a piece's edge on 1,000 primitives); then the points
+between, for the stretches that keep a window. The radius-of-gyration bound
+(:func:`primlib.match._bounds.gyration_bound`), taken from running sums along each stretch
+with a margin for their round-off (:func:`._grid_bound.window_energies`), drops more before
+any window's points are gathered; the rest are centred each on its own mean, bounded so
+again, and scored by ``rmsd_from_moments`` (no rotation formed). The seeds are those of
+scoring every window so (``benchmarks/_reference_search.every_window_seeds``).
 
 Two more prunings leave the seeds as they are. On a scale of many windows the starts are cut
 in blocks, each with one bound on the chords of the windows starting in it
@@ -67,9 +71,11 @@ from primlib.match._grid_bound import (
     anchor_values,
     beyond,
     endpoint_gap,
+    gyration_below,
     speed_bounds,
     stretch_bounds,
     stretch_length,
+    window_energies,
 )
 from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import Candidate, PathPiece, SearchOptions, SearchStats
@@ -379,32 +385,63 @@ class GridSearch:
 
     def _score_part(self, sc: _Scale, query: _Query, eps: float, st: _Stretches,
                     part: np.ndarray, best: Best, slack: float, cap: float) -> None:  # fmt: skip
-        """:meth:`_score` the windows of the stretches ``part`` (none above ``cap``)."""
-        res, rows, which, m = self._points(sc, st, part)
-        limit = np.minimum(st.gate[which], min(best.limit(), cap))
-        self._score(sc, query, eps, (res, rows, st.prim[which], m, limit, st.s == 1), best, slack)
+        """:meth:`_score` the windows of the stretches ``part`` (none above ``cap``) not
+        beyond the limit by their own endpoint bound (s = 1: the stretch bound was it)."""
+        limit = np.minimum(st.gate[part], min(best.limit(), cap))
+        if st.s == 1:  # the anchors are every grid point
+            windows = (st.anchors, st.rows[part], st.prim[part], st.first[part], limit)
+        else:
+            windows = self._stretch_windows(sc, query, st, part, limit, slack)
+        if windows is not None:
+            self._score(sc, query, eps, windows, best, slack)
 
-    def _points(self, sc: _Scale, st: _Stretches, part: np.ndarray) -> tuple:
-        """The resampled points of the windows of stretches ``part``: an (M, d) array, the
-        row of each window's first point (its K points are the next K rows), the stretch
-        and the index m of each window. With s = 1 the anchors are every grid point."""
-        k, s = self.opts.grid_points, st.s
-        if s == 1:
-            return st.anchors, st.rows[part], part, st.first[part]
-        npts = s + k - 1
-        first = st.first[part]
-        x = ((first[:, None] + np.arange(npts)) * sc.h).ravel()
-        res = self._resample(np.repeat(st.prim[part], npts), x)
-        b, t = np.nonzero(np.arange(s) < st.count[part][:, None])
-        return res, b * npts + t, part[b], first[b] + t
+    def _stretch_windows(self, sc: _Scale, query: _Query, st: _Stretches, part: np.ndarray,
+                         limit: np.ndarray, slack: float) -> tuple | None:  # fmt: skip
+        """The windows of the stretches ``part`` (s > 1; ``limit`` per stretch) that neither
+        their own endpoint bound nor :func:`._grid_bound.gyration_below` puts beyond it: the
+        resampled points (M, d), the row of each window's first point (its K points are the
+        next K rows), its primitive, index m and limit; None for none. P is resampled where
+        the windows start and end first (2s rows of a stretch's s + K − 1), the rows between
+        only for the stretches that keep a window (about a third of them, at a piece's
+        edge on 1,000 primitives): the same points, row by row."""
+        k, s, h = self.opts.grid_points, st.s, sc.h
+        first, prim, d = st.first[part], st.prim[part], self.bank.points.shape[1]
+        t = np.arange(s)
+        ends = np.concatenate([t, t + k - 1])
+        pts = self._resample(np.repeat(prim, 2 * s), ((first[:, None] + ends) * h).ravel())
+        pts = pts.reshape(part.size, 2 * s, d)
+        chord = (pts[:, s:] - pts[:, :s]).reshape(-1, d)
+        gap = endpoint_gap(chord, query.chord, self.opts.rotation).reshape(part.size, s)
+        keep = (t < st.count[part][:, None]) & ~beyond(
+            gap / math.sqrt(2.0 * k), limit[:, None], query.rg, slack)  # fmt: skip
+        b = np.flatnonzero(keep.any(axis=1))
+        if b.size == 0:
+            return None
+        mid = np.arange(s, k - 1)
+        inner = self._resample(np.repeat(prim[b], mid.size), ((first[b, None] + mid) * h).ravel())
+        rows = np.concatenate([pts[b, :s], inner.reshape(b.size, mid.size, d), pts[b, s:]], axis=1)
+        energy, err = window_energies(rows, k, self._magnitude())
+        gyr = gyration_below(energy, err, float(np.sum(query.sq)), k)
+        bb, tt = np.nonzero(keep[b] & ~beyond(gyr, limit[b, None], query.rg, 0.0))
+        return (
+            rows.reshape(-1, d),
+            bb * rows.shape[1] + tt,
+            prim[b][bb],
+            first[b][bb] + tt,
+            limit[b][bb],
+        )
+
+    def _magnitude(self) -> float:
+        """The bank's largest coordinate magnitude (kept)."""
+        if self._extent is None:
+            pts = self.bank.points
+            self._extent = float(max(pts.max(), -pts.min())) if pts.size else 0.0
+        return self._extent
 
     def _round_off(self, query: _Query) -> float:
         """Absolute round-off of the endpoint bound in ρ: the chords' points carry ~u of
         the coordinates' magnitude each (256 u, generously), over √(2K)."""
-        if self._extent is None:
-            pts = self.bank.points
-            self._extent = float(max(pts.max(), -pts.min())) if pts.size else 0.0
-        big = self._extent + query.extent
+        big = self._magnitude() + query.extent
         return 256.0 * np.finfo(float).eps * big / math.sqrt(2.0 * self.opts.grid_points)
 
     def _stretches(self, sc: _Scale, query: _Query, eps: float) -> _Stretches:
@@ -507,18 +544,13 @@ class GridSearch:
     def _score(self, sc: _Scale, query: _Query, eps: float, part: tuple, best: Best,
                slack: float) -> None:  # fmt: skip
         """Of the windows ``part`` (resampled points (M, d), each window's first row, its
-        primitive, index m, a limit at or above its gate, and whether the limit was put to
-        its own endpoint bound already), drop those whose own endpoint bound or
-        radius-of-gyration bound
+        primitive, index m and a limit at or above its gate, its own endpoint bound not
+        beyond it), drop those whose radius-of-gyration bound
         (:func:`primlib.match._bounds.gyration_bound`) is beyond the limit, score the others
         (``rmsd_from_moments``, each window centred on its own mean) and offer those below
         their gates to ``best``."""
-        res, rows, prim, m, limit, bounded = part
+        res, rows, prim, m, limit = part
         k, rotation = self.opts.grid_points, self.opts.rotation
-        if not bounded:  # (s = 1: the stretch bound was the window's own)
-            gap = endpoint_gap(res[rows + k - 1] - res[rows], query.chord, rotation)
-            keep = np.flatnonzero(~beyond(gap / math.sqrt(2.0 * k), limit, query.rg, slack))
-            rows, prim, m, limit = rows[keep], prim[keep], m[keep], limit[keep]
         win = sliding_window_view(res, k, axis=0)[rows]  # (m, d, k)
         win = win - win.mean(axis=2, keepdims=True)
         sp = np.einsum("mdk,mdk->md" if rotation == "z" else "mdk,mdk->m", win, win)

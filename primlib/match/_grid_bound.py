@@ -147,6 +147,42 @@ def stretch_bounds(values: np.ndarray, n_stretch: np.ndarray, reach: np.ndarray,
     return np.maximum(mean, values[left] - reach * (2.0 * (s - 1) / s))
 
 
+def window_energies(rows: np.ndarray, k: int, big: float) -> tuple[np.ndarray, np.ndarray]:
+    """Σ|w_i − w̄|² of every window of K = ``k`` consecutive points of each stretch ``rows``
+    (n, m, d) (window t: rows t .. t + K − 1, t ≤ m − K), from running sums in the stretch's
+    own coordinates (its first point at 0), and a bound on how far each is from the sum the
+    windows centred on their own means give (``GridSearch._score``): both (n, m − K + 1).
+
+    The running sums of T = Σ_j |l_j|² (l_j the local points, m ≤ 20 terms) and of the l_j
+    each carry at most m·u of their terms' sums, the local points u of theirs; Σ|w − w̄|² =
+    S₂ − |S₁|²/K with |S₁|² ≤ K·S₂ ≤ K·T then errs by a few hundred u·T. The centred sums
+    err by K·u of theirs (at most T) and by K·|e|² for a mean off by e ≤ K·u·|w| (the
+    first-order term is Σ(w_i − w̄)·e = 0), |w| ≤ ``big`` (the coordinates' magnitude):
+    1e-12·T (~4,500 u) and 1e-25·big² (~10⁶ K³u²) hold both."""
+    n, m, d = rows.shape
+    local = rows - rows[:, :1]
+    run = np.zeros((n, m + 1, d + 1))
+    run[:, 1:, :d] = local
+    run[:, 1:, d] = np.einsum("nmd,nmd->nm", local, local)
+    np.cumsum(run, axis=1, out=run)
+    sums = run[:, k:] - run[:, :-k]
+    energy = sums[..., d] - np.einsum("ntd,ntd->nt", sums[..., :d], sums[..., :d]) / k
+    err = 1e-12 * run[:, -1:, d] + 1e-25 * d * big * big
+    return energy, np.broadcast_to(err, energy.shape)
+
+
+def gyration_below(energy: np.ndarray, err: np.ndarray, query_energy: float,
+                   k: int) -> np.ndarray:  # fmt: skip
+    """A bound at or below the radius-of-gyration bound |√(E/K) − √(E_q/K)|
+    (:func:`primlib.match._bounds.gyration_bound`) as computed from every E within ``err`` of
+    ``energy``: the interval's least, less 1e-12 of the radii for the rounding of either."""
+    lo = np.sqrt(np.maximum(energy - err, 0.0) / k)
+    hi = np.sqrt(np.maximum(energy + err, 0.0) / k)
+    rg_q = math.sqrt(query_energy / k)
+    gap = np.maximum(np.maximum(lo - rg_q, rg_q - hi), 0.0)
+    return gap - 1e-12 * (hi + rg_q)
+
+
 def block_boxes(points: np.ndarray, speeds: np.ndarray,
                 chunk: int = 1 << 17) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Per block of 2 consecutive intervals of the bank (the last one alone where N is odd),
