@@ -234,6 +234,31 @@ def test_coefficients_formed_from_neighbours_are_the_tables_to_the_bit():
         assert np.array_equal(got, want[rows])
 
 
+def test_searches_on_one_index_share_its_grid_tables():
+    # a segmentation makes a GridSearch of its own: the tables of the bank (coefficients,
+    # speed bounds, blocks) are kept on the index, so a second search makes none again,
+    # whatever its options, and finds what the first found
+    rng = np.random.default_rng(5)
+    bank = _bank(rng)
+    pieces = [
+        PathPiece(np.zeros((30, 3)) + bank.points[7], 29 * DT),  # at rest
+        PathPiece(_walk(rng, 300, 0.01), 299 * DT),
+    ]  # long: the coefficient table
+    first = GridSearch(bank, SearchOptions())
+    first.few = 0  # blocks on every scale
+    seeds = [first.seeds(p, 0.0, 1.0, 0.05) for p in pieces]
+    kept = dict(bank.grid_tables)
+    assert {"table", "starts", "block_max", "speeds", "extent"} <= kept.keys()
+    for rotation in ("none", "full"):
+        other = GridSearch(bank, SearchOptions(rotation=rotation))
+        other.few = 0
+        found = [other.seeds(p, 0.0, 1.0, 0.05) for p in pieces]
+        assert bank.grid_tables.keys() == kept.keys()
+        assert all(bank.grid_tables[k] is v for k, v in kept.items())  # none made again
+    assert found == seeds
+    assert BankIndex(bank.bank).grid_tables == {}  # a new index: its own, made when asked
+
+
 def _plain(monkeypatch) -> None:
     """The grid without blocks or caps, as before them."""
     monkeypatch.setattr(GridSearch, "_start_blocks", lambda self, sc: None)

@@ -99,6 +99,10 @@ class BankIndex:
         self._steps: np.ndarray | None = None
         self._envelope: Envelope | None = None
         self._roughness: Roughness | DiffRoughness | None = None
+        # the time-uniform grid's tables of these primitives (``_grid.GridSearch``: their
+        # interpolants' coefficients, speed bounds and blocks of starts), made on first use
+        # and shared by every search on this index
+        self.grid_tables: dict[str, Any] = {}
         self.index_seconds = 0.0
 
     @property
