@@ -26,6 +26,16 @@ def test_worker_matches_a_short_novel_path_and_the_report_compares_path_by_path(
     assert f"- time scale 1-1: {r['cpu'][0]:.2f} / {r['cpu'][0]:.2f} (1.00x)" in text
 
 
+def test_a_warm_call_is_timed_after_a_first_on_the_same_index(bench, capsys):
+    spec = {"library": "bundled", "samples": 300, "paths": 1, "cases": ["default"],
+            "warm": True}  # fmt: skip
+    warm = bench.worker(spec)["default"]
+    cold = bench.worker(dict(spec, warm=False))["default"]
+    assert warm["segments"] == cold["segments"]  # the same answer, the index kept
+    bench._report(spec, {"default": warm}, None)
+    assert "(warm call: the second on one index, seconds)" in capsys.readouterr().out
+
+
 def test_per_path_ratios_are_baseline_over_this_tree(bench):
     assert bench._per_path([1.0, 2.0], [1.5, 1.0]) == "1.00 / 1.50 (1.50x), 2.00 / 1.00 (0.50x)"
 
