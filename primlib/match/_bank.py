@@ -32,9 +32,11 @@ class BankIndex:
 
     Build it once per bank and pass it to :func:`primlib.match.match_path` (or
     :func:`primlib.match.segment_path`) for every path matched against that bank: the
-    arc-length index (built on first use, ~0.2 s for 1,000 primitives of 2,000 samples) and
-    the finer indexes for short pieces are kept on this object, nowhere else. Not
-    thread-safe while it builds them; give each thread its own, or build them first.
+    arc-length index (built on first use, ~0.2 s for 1,000 primitives of 2,000 samples), the
+    finer indexes for short pieces and the time-uniform grid's tables (:attr:`grid_tables`:
+    ~0.7 s and ~300 MB there, made when a piece at rest is first searched) are kept on this
+    object, nowhere else. Not thread-safe while it builds them; give each thread its own, or
+    build them first.
 
     A primitive that cannot be compared with others — a non-finite value, a coordinate
     beyond :data:`primlib.defaults.MAX_ABS_VALUE` (so its second moments could overflow) or
@@ -55,6 +57,9 @@ class BankIndex:
         The usable primitives only, in the bank's order (``offsets`` re-based).
     skipped : dict of int to str
         Id of every left-out primitive and why.
+    grid_tables : dict
+        The time-uniform grid's tables of these primitives (``_grid.GridSearch``), filled by
+        the first search that needs each.
 
     Examples
     --------
