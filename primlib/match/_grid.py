@@ -54,9 +54,9 @@ and benchmarks also run it on whole paths as the exhaustive reference.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -212,6 +212,13 @@ class GridSearch:
         ~0.7 s, the blocks ~50 MB a width)."""
         return self.bank.grid_tables
 
+    def _once(self, key: str, make: Callable[[], Any]) -> Any:
+        """The bank's table ``key`` (:attr:`_kept`), made by ``make`` at the first ask."""
+        kept = self._kept
+        if key not in kept:
+            kept[key] = make()
+        return kept[key]
+
     def _scales(self, path: PathPiece, a: float, b: float) -> Iterator[_Scale]:
         """Per time scale, the primitives that hold its duration and their windows (starts
         m·h, m < n_start)."""
@@ -248,10 +255,9 @@ class GridSearch:
             p1, c1, c2, c3 = _coefficients_at(self.bank.points, rows, i, count)
             rows = np.arange(rows.size)
         else:
-            if table is None:
-                table = self._kept["table"] = _coefficient_table(self.bank.points,
-                                                                 self.bank.offsets)  # fmt: skip
-            p1, c1, c2, c3 = table
+            p1, c1, c2, c3 = self._once(
+                "table", lambda: _coefficient_table(self.bank.points, self.bank.offsets)
+            )
         # p1 + 0.5 f (c1 + f (c2 + f c3)), its operations in their order, in place, each
         # coefficient gathered contiguous (mode "clip": no buffer; rows are in range)
         val = np.take(c3, rows, axis=0, mode="clip")
@@ -378,10 +384,9 @@ class GridSearch:
         (the scale is searched whole)."""
         if StartBlocks.width(sc.dur) is None or int(sc.n_start.sum()) <= self.few:
             return None
-        if "starts" not in self._kept:
-            self._kept["starts"] = StartBlocks(self.bank.points, self.bank.offsets,
-                                               self._blocks(1))  # fmt: skip
-        return self._kept["starts"]
+        return self._once(
+            "starts", lambda: StartBlocks(self.bank.points, self.bank.offsets, self._blocks(1))
+        )
 
     def _block_bounds(self, starts: StartBlocks, sc: _Scale, query: _Query, limit: float,
                       slack: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
@@ -439,10 +444,8 @@ class GridSearch:
 
     def _magnitude(self) -> float:
         """The bank's largest coordinate magnitude (kept)."""
-        if "extent" not in self._kept:
-            pts = self.bank.points
-            self._kept["extent"] = float(max(pts.max(), -pts.min())) if pts.size else 0.0
-        return self._kept["extent"]
+        pts = self.bank.points
+        return self._once("extent", lambda: float(max(pts.max(), -pts.min())) if pts.size else 0.0)
 
     def _round_off(self, query: _Query) -> float:
         """Absolute round-off of the endpoint bound in ρ: the chords' points carry ~u of
@@ -530,7 +533,7 @@ class GridSearch:
     def _blocks(self, width: int) -> np.ndarray:
         """Maxima of the speed bounds over blocks [i·width, (i + 1)·width), width a power of 2
         (each from the one of half its width), kept."""
-        block_max = self._kept.setdefault("block_max", {})
+        block_max = self._once("block_max", dict)
         if width not in block_max:
             if width == 1:
                 block_max[1] = speed_bounds(self.bank.points, self.bank.offsets)
@@ -544,9 +547,7 @@ class GridSearch:
     def _padded_speeds(self) -> np.ndarray:
         """The speed bounds of :meth:`_blocks` (width 1) with a 0 either side (gathers
         clipped to them read 0)."""
-        if "speeds" not in self._kept:
-            self._kept["speeds"] = np.concatenate([[0.0], self._blocks(1), [0.0]])
-        return self._kept["speeds"]
+        return self._once("speeds", lambda: np.concatenate([[0.0], self._blocks(1), [0.0]]))
 
     def _score(self, sc: _Scale, query: _Query, eps: float, part: tuple, best: Best,
                slack: float) -> None:  # fmt: skip
