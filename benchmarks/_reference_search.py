@@ -27,6 +27,7 @@ import numpy as np
 from primlib.match import BankIndex, SearchOptions, kabsch
 from primlib.match._bank import as_index
 from primlib.match._bounds import half_bound_margin, half_window_bound
+from primlib.match._curvature import minus
 from primlib.match._grid import GridSearch
 from primlib.match._index_search import ArcQuery, IndexSearch
 from primlib.match._options import Candidate, PathPiece
@@ -107,18 +108,24 @@ def every_window_seeds(grid: GridSearch, path: PathPiece, a: float, b: float, ep
                        score) -> list[Candidate]:  # fmt: skip
     """:meth:`GridSearch.seeds` with every window of every scale resampled and scored by
     ``score(points (m, K, d), query (K, d)) -> rmsd (m,)``: its windows below their gates,
-    the ``8·seeds`` best of each scale by (RMSD, primitive, start), then suppression."""
+    the ``8·seeds`` best of each scale by (RMSD, primitive, start), then suppression. The
+    windows are the grid's: those the piece's turns rule out (``out``,
+    :mod:`primlib.match._curvature`) are not among them."""
     k, d = grid.opts.grid_points, grid.bank.points.shape[1]
     q = path.at(np.linspace(a, b, k))
     pool: list[Candidate] = []
     grid.stats.queries += 1
-    for sc in grid._scales(path, a, b):
-        m = np.concatenate([np.arange(n) for n in sc.n_start])
+    for whole in grid._scales(path, a, b, eps):
+        grid.stats.windows += int(whole.n_start.sum())  # every window of the scale, as the grid
+        sc = minus(whole, whole.out, whole)  # the windows the piece's turns leave
+        if sc is None:
+            continue
+        runs = zip(sc.first(), sc.n_start, strict=True)
+        m = np.concatenate([np.arange(f, f + n) for f, n in runs])
         prim, x0 = np.repeat(sc.prim, sc.n_start), m * sc.h
         at = ((m[:, None] + np.arange(k)) * sc.h).ravel()
         pts = grid._resample(np.repeat(prim, k), at).reshape(m.size, k, d)
         rmsd = score(pts, q)
-        grid.stats.windows += m.size
         grid.stats.scored += m.size
         ok = np.flatnonzero(rmsd < eps + grid._slack(prim, x0, sc))
         top = ok[np.lexsort((x0[ok], prim[ok], rmsd[ok]))[: 8 * grid.opts.seeds]]

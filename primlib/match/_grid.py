@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -64,6 +64,7 @@ from scipy.ndimage import maximum_filter1d
 
 from primlib.match._bank import BankIndex
 from primlib.match._bounds import gyration_bound
+from primlib.match._curvature import Curvature, critical, lag_turns, minus
 from primlib.match._grid_blocks import Scale as _Scale
 from primlib.match._grid_blocks import StartBlocks, runs, without
 from primlib.match._grid_bound import (
@@ -219,14 +220,18 @@ class GridSearch:
             kept[key] = make()
         return kept[key]
 
-    def _scales(self, path: PathPiece, a: float, b: float) -> Iterator[_Scale]:
+    def _scales(self, path: PathPiece, a: float, b: float,
+                eps: float | None = None) -> Iterator[_Scale]:  # fmt: skip
         """Per time scale, the primitives that hold its duration and their windows (starts
-        m·h, m < n_start)."""
+        m·h, m < n_start); with ``eps``, ``out`` the windows the piece's turns rule out
+        (:mod:`._curvature`)."""
         bank, k = self.bank, self.opts.grid_points
         dq = (b - a) * path.duration / bank.dt
         counts = bank.counts
         lo, hi = self.opts.time_scale
         spread = math.sqrt(self.opts.scale_ratio) - 1.0 if hi > lo else 0.0
+        kc = path.confirm_points(a, b)
+        turns = None if eps is None else lag_turns(path.at(np.linspace(a, b, kc)))
         for scale in scale_grid(lo, hi, self.opts.scale_ratio):
             dur = scale * dq
             h = dur / (k - 1)
@@ -235,7 +240,13 @@ class GridSearch:
                 continue
             n_start = np.floor((counts[ok] - 1 - dur) / h + 1e-9).astype(np.int64) + 1
             cell = dur / (k - 1) / 2.0 + dur * spread
-            yield _Scale(ok, n_start, dur, h, cell)
+            sc = _Scale(ok, n_start, dur, h, cell)
+            span = dur * (1.0 + spread)  # the longest window of the scale's cells
+            crit = -1.0 if turns is None else critical(turns, span / max(kc - 1, 1), kc, eps)
+            if crit >= 0.0:
+                curv = self._once("curvature", lambda: Curvature(bank.points, bank.offsets))
+                sc = replace(sc, out=curv.out(sc, crit, span))
+            yield sc
 
     def _resample(self, prim: np.ndarray, x: np.ndarray) -> np.ndarray:
         """:func:`._interp.cubic_at` of primitives ``prim`` at sample indices ``x``, from a
@@ -301,7 +312,7 @@ class GridSearch:
         pool: list[Candidate] = []
         slack = self._round_off(query)
         cap = low = math.inf
-        for sc in self._scales(path, a, b):
+        for sc in self._scales(path, a, b, eps):
             self.stats.windows += int(sc.n_start.sum())
             best = self._scale_seeds(sc, query, eps, slack, cap)
             pool += [
@@ -329,20 +340,20 @@ class GridSearch:
         best = Best(8 * self.opts.seeds)
         starts = self._start_blocks(sc)
         if starts is None:
-            self._best_first(sc, query, eps, slack, cap, best)
+            self._best_first(sc, query, eps, slack, cap, best, sc)
             return best
         width = starts.width(sc.dur)
         if cap < math.inf:  # the blocks the cap leaves, the 64 of the smallest bounds first
             live, bound = self._block_bounds(starts, sc, query, cap, slack)
             if live.size <= _HEAD:
                 self._best_first(runs(live, width, self.bank.offsets, sc), query, eps, slack,
-                                 cap, best)  # fmt: skip
+                                 cap, best, sc)  # fmt: skip
                 return best
             first = np.sort(live[np.argpartition(bound, _HEAD - 1)[:_HEAD]])
         else:
             first = starts.head(sc.dur, query.chord, self.opts.rotation, _HEAD)
         head = runs(first, width, self.bank.offsets, sc)
-        self._best_first(head, query, eps, slack, cap, best)
+        self._best_first(head, query, eps, slack, cap, best, sc)
         limit = min(best.limit(), cap)
         if cap < math.inf:
             live = live[~beyond(bound, limit, query.rg, slack)]
@@ -353,15 +364,16 @@ class GridSearch:
             rest = without(sc, head)
         else:
             rest = runs(live, width, self.bank.offsets, sc)
-        self._best_first(rest, query, eps, slack, cap, best)
+        self._best_first(rest, query, eps, slack, cap, best, sc)
         return best
 
     def _best_first(self, sc: _Scale | None, query: _Query, eps: float, slack: float,
-                    cap: float, best: Best) -> None:  # fmt: skip
-        """Offer ``best`` the windows of ``sc`` (None: none) below their gates and ``cap``:
-        stretches of windows best-first by their lower bound (:meth:`_stretches`) until the
-        next one's bound passes the ``top``-th best RMSD found (:class:`._grid_bound.Best`),
-        ``cap`` or its stretch's gate."""
+                    cap: float, best: Best, whole: _Scale) -> None:  # fmt: skip
+        """Offer ``best`` the windows of ``sc`` (None: none; those of ``whole.out`` left out)
+        below their gates and ``cap``: stretches of windows best-first by their lower bound
+        (:meth:`_stretches`) until the next one's bound passes the ``top``-th best RMSD found
+        (:class:`._grid_bound.Best`), ``cap`` or its stretch's gate."""
+        sc = minus(sc, whole.out, whole)
         if sc is None:
             return
         st = self._stretches(sc, query, eps)

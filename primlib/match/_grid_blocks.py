@@ -62,7 +62,8 @@ class Scale:
     counts, the duration D and stride h (samples), the cell half-width c, and the stretch of
     intervals a window's slack takes, [j − back, j − back + size) for a start in [j, j + 1)
     (``GridSearch._local_speeds``). With ``m0``, runs of windows m0, ..., m0 + n_start − 1 of
-    the primitives ``prim`` (one may have several: :func:`runs`)."""
+    the primitives ``prim`` (one may have several: :func:`runs`). ``out``: runs of windows
+    no match can be in, left out of every search of the scale (:mod:`._curvature`)."""
 
     prim: np.ndarray
     n_start: np.ndarray
@@ -70,6 +71,7 @@ class Scale:
     h: float
     cell: float
     m0: np.ndarray | None = None
+    out: Scale | None = None
 
     def first(self) -> np.ndarray:
         """Each run's first window (0: every window of its primitive)."""
