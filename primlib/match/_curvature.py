@@ -59,20 +59,21 @@ class Curvature:
 
     def __init__(self, points: np.ndarray, offsets: np.ndarray) -> None:
         n = points.shape[0]
-        d2 = np.zeros(n)
+        sq = np.zeros(-(-n // _BLOCK) * _BLOCK)  # squared: the square root of the maxima only
         for c0 in range(1, n - 1, 1 << 16):  # bounded temporaries
             c1 = min(c0 + (1 << 16), n - 1)
-            dd = points[c0 - 1 : c1 - 1] - 2.0 * points[c0:c1] + points[c0 + 1 : c1 + 1]
-            d2[c0:c1] = np.sqrt(np.einsum("ij,ij->i", dd, dd))
+            dd = points[c0 - 1 : c1 - 1] + points[c0 + 1 : c1 + 1]
+            dd -= points[c0:c1]
+            dd -= points[c0:c1]
+            sq[c0:c1] = np.einsum("ij,ij->i", dd, dd)
         first, last = offsets[:-1], offsets[1:] - 1
         two = last > first
-        d2[first[two]] = np.linalg.norm(points[first[two] + 1] - points[first[two]], axis=1)
-        d2[last[two]] = np.linalg.norm(points[last[two] - 1] - points[last[two]], axis=1)
-        d2[first[~two]] = 0.0
-        pad = np.zeros(-(-n // _BLOCK) * _BLOCK)
-        pad[:n] = d2
+        for row, other in ((first[two], first[two] + 1), (last[two], last[two] - 1)):
+            step = points[other] - points[row]
+            sq[row] = np.einsum("ij,ij->i", step, step)
+        sq[first[~two]] = 0.0
         big = float(np.abs(points).max()) if n else 0.0
-        self.block = pad.reshape(-1, _BLOCK).max(axis=1) * (1.0 + 1e-12)
+        self.block = np.sqrt(sq.reshape(-1, _BLOCK).max(axis=1)) * (1.0 + 1e-12)
         self.block += 8.0 * np.finfo(float).eps * big
         self.offsets, self.rows = offsets, n
 
