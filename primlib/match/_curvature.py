@@ -1,15 +1,15 @@
-"""A lower bound from the query's sharpest turn against each primitive's curvature: the
-grid's (primitive, time scale) cells that cannot hold a match, dropped before any window.
+"""A lower bound from the piece's sharpest turn against the curvature of the stored rows a
+window reads: the grid's windows that cannot hold a match, left out before any is resampled.
 
 A path that stops dead or sets off at once (a dwell in a part program, sampled without its
 ramps), or turns a sharp corner, has a large second difference where it does; a smooth stored
 primitive played slowly has small ones. The grid (:mod:`._grid`) searches such a piece at
 every time scale, and at the slow scales, where a window is a few stored samples long, each
 of millions of windows moves so little per grid step that its cell's slack keeps it near
-the gate: on 1,000 primitives the edge of a rest cost 6-10 s a probe, most of it on scales
+the gate: on 1,000 primitives the edge of a rest cost 6-10 s a probe, most of it on windows
 this bound rules out.
 
-**The query's side.** The exact check (:mod:`._segment`) compares K path samples q_i with
+**The piece's side.** The exact check (:mod:`._segment`) compares K path samples q_i with
 the window's points w_i = c(x0 + i·σ) (c the primitive's Catmull-Rom interpolant,
 :func:`._interp.cubic_at`; σ stored samples per path sample: the time scale times the ratio
 of the sample times). For residuals e_i = q_i − R w_i − t (any rotation R, translation t)
@@ -19,21 +19,24 @@ Cauchy–Schwarz |Δ²_m e_i| ≤ √6·(|e_{i−m}|² + |e_i|² + |e_{i+m}|²)^
     ρ ≥ (|Δ²_m q_i| − |Δ²_m w_i|) / √(6K)        for every i, m.
 
 **The stored side.** On an interval [j, j + 1] the interpolant is p_j + ½f(c1 + f(c2 + f c3))
-with c2 = 2A − B, c3 = B − A, A and B the second differences of the samples centred at j
-and j + 1, so c''(f) = (2 − 3f)A + (3f − 1)B and |c''| ≤ 3·D2, D2 the primitive's largest
-|p_{j−1} − 2p_j + p_{j+1}|. Then |c(x − δ) − 2c(x) + c(x + δ)| ≤ δ²·max|c''| (c is C¹,
-piecewise cubic: the second difference is ∫∫ c''), so |Δ²_m w_i| ≤ 3·D2·(mσ)². This holds
-where the three points lie in [1, n − 2]: the first and last intervals read the clamped
-end's ghost (p_{−1} = p_0), whose second difference is a whole sample step, so windows that
-reach them are kept (:func:`end_runs`).
+with c2 = 2A − B, c3 = B − A, A and B the samples' second differences centred at j and j + 1
+(at a primitive's first and last sample, those with the clamped end's ghost p_{−1} = p_0:
+a whole sample step), so c''(f) = (2 − 3f)A + (3f − 1)B and |c''| ≤ 3·D2, D2 the largest of
+the rows' second differences the window reads. Then |c(x − δ) − 2c(x) + c(x + δ)| ≤
+δ²·max|c''| (c is C¹, piecewise cubic: the second difference is ∫∫ c''), so
+|Δ²_m w_i| ≤ 3·D2·(mσ)².
 
-A primitive is left out of a scale's cell (time scales up to σ_hi) when
-max_m (H_m − 3·D2·m²·σ_hi²) ≥ √(6K)·eps (H_m the largest |Δ²_m q_i|), with a relative margin
-for round-off: no window of it there is within eps at the path's samples, which is what a
-match is. Its windows near its ends stay in the search. On the random walks of
-``bench_match_novel.py`` D2 is 0.4-2.6 eps (the median primitive 1.2 eps); a stop from 8.8
-eps a sample leaves H_3 = 26 eps, so on a 12-sample piece every primitive is out below time
-scale ~0.3 and half of them below ~0.75.
+A window is left out when every row its grid cell reads (starts within h of the grid's,
+lasting up to the cell's longest, σ up to its σ) has D2 at most
+max_m (H_m − √(6K)·eps)/(3·m²·σ²) (:func:`critical`; H_m the largest |Δ²_m q_i|, with margins
+for round-off): no window of that cell is within eps at the path's samples, which is what a
+match is. The rows' D2 are kept as their maxima over blocks of ``_BLOCK`` rows, and the
+windows left out are found as runs from the runs of blocks below the critical D2
+(:meth:`Curvature.out`). A primitive that starts or ends moving keeps its windows there (its
+ghost is a kink as sharp as a sudden start). On the random walks of ``bench_match_novel.py``
+D2 is 0.4-2.6 eps at a primitive's sharpest and far less along most of it; a stop from 8.8
+eps a sample has H_3 = 26 eps, and on a 12-sample piece 93-99 % of the windows of the time
+scales up to 0.7 are out.
 """
 
 from __future__ import annotations
