@@ -47,6 +47,12 @@ checked, and then the scales are searched again without caps. A piece at rest (a
 stops: a piece the index cannot place) against 1,000 primitives scored ~80,000 windows and
 took 1.4 s; with both ~300 and 0.13-0.17 s (``benchmarks/bench_match_novel.py --rests``).
 
+One pruning changes which windows are candidates at all: a window whose whole cell reads
+stored rows too little curved to follow the piece's sharpest turn within eps at the path's
+samples (a stop or a start at once, a sharp corner) is left out of its scale
+(:mod:`._curvature`, ``out`` of each scale). It cannot be a match, but it could have been a
+seed above eps; the every-window reference takes the same windows.
+
 The index search falls back on it for (nearly) stationary or very short pieces; the tests
 and benchmarks also run it on whole paths as the exhaustive reference.
 """
