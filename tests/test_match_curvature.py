@@ -47,7 +47,7 @@ def test_the_interpolants_second_difference_is_below_three_curvatures_times_its_
     # (the ghosts' at a primitive's ends included): the stored side of the bound
     rng = np.random.default_rng(3)
     bank = _bank(rng)
-    curv = Curvature(bank.points, bank.offsets)
+    curv = Curvature(bank.points, bank.offsets, float(np.abs(bank.points).max()))
     for p in range(bank.k):
         n, o = int(bank.counts[p]), int(bank.offsets[p])
         delta = rng.uniform(0.05, 4.0, 400)

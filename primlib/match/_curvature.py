@@ -58,9 +58,10 @@ class Curvature:
     """The bank's curvatures: per row j, |p_{j−1} − 2p_j + p_{j+1}| of its primitive with the
     clamped ends' ghosts (the first row |p_1 − p_0|, the last |p_{n−2} − p_{n−1}|: what the
     interpolant's first and last intervals read), the largest of every ``_BLOCK`` rows kept,
-    raised by a relative 1e-12 and an absolute 8u of the largest coordinate (round-off)."""
+    raised by a relative 1e-12 and an absolute 8u of ``big``, the largest |coordinate|
+    (round-off; the grid keeps it: ``GridSearch._magnitude``)."""
 
-    def __init__(self, points: np.ndarray, offsets: np.ndarray) -> None:
+    def __init__(self, points: np.ndarray, offsets: np.ndarray, big: float) -> None:
         n = points.shape[0]
         sq = np.zeros(-(-n // _BLOCK) * _BLOCK)  # squared: the square root of the maxima only
         for c0 in range(1, n - 1, 1 << 16):  # bounded temporaries
@@ -75,7 +76,6 @@ class Curvature:
             step = points[other] - points[row]
             sq[row] = np.einsum("ij,ij->i", step, step)
         sq[first[~two]] = 0.0
-        big = float(np.abs(points).max()) if n else 0.0
         self.block = np.sqrt(sq.reshape(-1, _BLOCK).max(axis=1)) * (1.0 + 1e-12)
         self.block += 8.0 * np.finfo(float).eps * big
         self.offsets, self.rows = offsets, n

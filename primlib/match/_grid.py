@@ -250,7 +250,9 @@ class GridSearch:
             span = dur * (1.0 + spread)  # the longest window of the scale's cells
             crit = -1.0 if turns is None else critical(turns, span / max(kc - 1, 1), kc, eps)
             if crit >= 0.0:
-                curv = self._once("curvature", lambda: Curvature(bank.points, bank.offsets))
+                curv = self._once(
+                    "curvature", lambda: Curvature(bank.points, bank.offsets, self._magnitude())
+                )
                 sc = replace(sc, out=curv.out(sc, crit, span))
             yield sc
 
