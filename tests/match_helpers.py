@@ -1,4 +1,4 @@
-"""Random smooth 3-D primitives for the matcher's CLI and min-segment tests."""
+"""Random smooth 3-D primitives for the matcher's tests, and the grid's every-window scorer."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from primlib.match._kabsch import rmsd_from_moments
 from primlib.nurbs import Trajectory
 from primlib.plant import Machine
 from primlib.store import Bank
@@ -45,3 +46,20 @@ def smooth_walk(rng, n: int, speed: float, width: int = 15, rest: slice | None =
     if rest is not None:
         pace[rest] = 0.0
     return np.cumsum(v * pace, axis=0) + rng.normal(size=3) * spread
+
+
+def every_window_score(rotation: str, k: int):
+    """The pruned grid's scoring, for ``every_window_seeds`` (``_reference_search``) on
+    every window of K = ``k`` points: each centred on its own mean, its RMSD from its moments
+    (ties, as a slow piece against stopped primitives, rank alike)."""
+
+    def score(pts: np.ndarray, q: np.ndarray) -> np.ndarray:
+        w = pts.transpose(0, 2, 1)
+        w = w - w.mean(axis=2, keepdims=True)
+        qc = q - q.mean(axis=0)
+        sp, sq = np.einsum("mdk,mdk->md", w, w), (qc * qc).sum(axis=0)
+        if rotation != "z":
+            sp, sq = sp.sum(axis=1), sq.sum()
+        return rmsd_from_moments(w @ qc, sp, np.broadcast_to(sq, sp.shape), k, rotation)
+
+    return score

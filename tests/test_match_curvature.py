@@ -8,14 +8,13 @@ import math
 import numpy as np
 import pytest
 from _reference_search import every_window_seeds
-from match_helpers import smooth_walk
+from match_helpers import every_window_score, smooth_walk
 
 from primlib.match import BankIndex, kabsch
 from primlib.match._curvature import Curvature, critical, lag_turns, minus
 from primlib.match._grid import GridSearch
 from primlib.match._grid_blocks import Scale
 from primlib.match._interp import cubic_at
-from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import PathPiece, SearchOptions
 from primlib.store import Bank
 
@@ -115,17 +114,6 @@ def test_windows_near_a_primitives_moving_end_stay():
         assert not np.any((prim == 0) & (m * sc.h < 1.0 + sc.h))  # the line's start stays
 
 
-def _every_window(rotation: str):
-    def score(pts: np.ndarray, q: np.ndarray) -> np.ndarray:
-        w = pts.transpose(0, 2, 1)
-        w = w - w.mean(axis=2, keepdims=True)
-        qc = q - q.mean(axis=0)
-        sp, sq = np.einsum("mdk,mdk->md", w, w).sum(axis=1), float((qc * qc).sum())
-        return rmsd_from_moments(w @ qc, sp, np.broadcast_to(sq, sp.shape), 16, rotation)
-
-    return score
-
-
 @pytest.mark.parametrize("few", [0, None])
 @pytest.mark.parametrize("rotation", ["full", "none"])
 def test_the_grid_returns_the_seeds_of_every_window_it_keeps(rotation, few):
@@ -138,7 +126,7 @@ def test_the_grid_returns_the_seeds_of_every_window_it_keeps(rotation, few):
         pruned.few = few
     got = pruned.seeds(path, 0.0, 1.0, 0.01)
     every = GridSearch(bank, SearchOptions(rotation=rotation))
-    want = every_window_seeds(every, path, 0.0, 1.0, 0.01, _every_window(rotation))
+    want = every_window_seeds(every, path, 0.0, 1.0, 0.01, every_window_score(rotation, 16))
     assert [(c.prim, c.x0, c.x1) for c in got] == [(c.prim, c.x0, c.x1) for c in want]
     assert pruned.stats.windows == every.stats.windows
 

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 from _reference_search import every_window_seeds
-from match_helpers import smooth_walk
+from match_helpers import every_window_score, smooth_walk
 from numpy.lib.stride_tricks import sliding_window_view
 
 from primlib.match import BankIndex, kabsch
@@ -21,7 +21,6 @@ from primlib.match._grid_bound import (
     window_energies,
 )
 from primlib.match._interp import cubic_at
-from primlib.match._kabsch import rmsd_from_moments
 from primlib.match._options import PathPiece, SearchOptions
 from primlib.store import Bank
 
@@ -104,22 +103,6 @@ def _query(bank: BankIndex, rng, kind: str, rotation: str) -> tuple[PathPiece, f
     return PathPiece(pts, (n - 1) * DT), 0.02
 
 
-def _every_window(rotation: str):
-    """The pruned grid's scoring, on every window: each centred on its own mean, its RMSD
-    from its moments (ties, as a slow piece against stopped primitives, rank alike)."""
-
-    def score(pts: np.ndarray, q: np.ndarray) -> np.ndarray:
-        w = pts.transpose(0, 2, 1)
-        w = w - w.mean(axis=2, keepdims=True)
-        qc = q - q.mean(axis=0)
-        sp, sq = np.einsum("mdk,mdk->md", w, w), (qc * qc).sum(axis=0)
-        if rotation != "z":
-            sp, sq = sp.sum(axis=1), sq.sum()
-        return rmsd_from_moments(w @ qc, sp, np.broadcast_to(sq, sp.shape), K, rotation)
-
-    return score
-
-
 @pytest.mark.parametrize("rotation", ["full", "z", "none"])
 @pytest.mark.parametrize("kind", ["copy", "stationary", "tiny", "slow"])
 @pytest.mark.parametrize(("seed", "few"), [(0, 0), (1, 0), (2, 0), (0, None), (1, None)])
@@ -136,7 +119,7 @@ def test_the_pruned_grid_returns_the_seeds_of_every_window_scored(rotation, kind
         pruned.few = few
     got = pruned.seeds(path, a, b, eps)
     every = GridSearch(bank, opts)
-    want = every_window_seeds(every, path, a, b, eps, _every_window(rotation))
+    want = every_window_seeds(every, path, a, b, eps, every_window_score(rotation, K))
     assert [(c.prim, c.x0, c.x1) for c in got] == [(c.prim, c.x0, c.x1) for c in want]
     # ρ from moments loses ~u·(Σ|p̃|² + Σ|q̃|²)/(2Kρ) to cancellation, its eigenvalue route
     # depending on the batch it is in: ~1e-14 here
