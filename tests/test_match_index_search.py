@@ -136,3 +136,25 @@ def test_the_drain_from_sorted_bounds_scores_what_a_selection_per_batch_does(nov
     assert not fronts
     assert run(1) == per_batch
     assert max(fronts) > 2 * 2 * 256  # drained from sorted bounds, over several fronts
+
+
+@pytest.mark.parametrize("time_scale", [(1.0, 1.0), (0.95, 1.05)])
+def test_rotation_none_after_the_screen_the_shape_bound_first_keeps_the_same_seeds(
+    novel, time_scale, monkeypatch
+):
+    # a narrow time-scale range: the screen's time-scale test sifts, and under rotation
+    # none the shape bound then goes before the speed bound (no ball: the plain search)
+    bank, path = novel
+    monkeypatch.setattr(IndexSearch, "ball", False)
+    opts = SearchOptions(rotation="none", time_scale=time_scale)
+    taken = []
+    real = IndexSearch._shape_then_speed
+    monkeypatch.setattr(
+        IndexSearch, "_shape_then_speed", lambda *x: taken.append(1) or real(*x)
+    )
+    for a, b in [(0.0, 0.05), (0.2, 0.24), (0.5, 0.58), (0.3, 0.5)]:
+        for eps in (0.05, 0.5, 2.0):  # the larger: the first batch fills the pool
+            pruned = IndexSearch(bank, opts, chunk=256, first_batch=64)
+            scan = ScanSearch(bank, opts, chunk=256, first_batch=64)
+            assert pruned.seeds(path, a, b, eps) == scan.seeds(path, a, b, eps)
+    assert taken  # the order under test was taken

@@ -388,16 +388,19 @@ class IndexSearch:
             rest = rest[_not_in(rest, head, aq.n_windows)]
             if rest.size == 0:
                 return pool
-            lbs = self.speed_bound(aq, rest)
-            keep = (lbs < pool.combined) & _cone.alive(self, aq, gates, rest, self.cone)
-            rest, lbs = rest[keep], lbs[keep]
-            if rest.size > self.gather_fraction * aq.n_windows:
-                lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
+            if self.opts.rotation == "none":
+                rest, lbs, lbc = self._shape_then_speed(aq, gates, pool.combined, rest)
             else:
-                lb1 = self.first_bound(aq, rest)
-            lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
-            keep = (lb1 < gates.at(rest)) & (lbc < pool.combined)
-            rest, lbs, lbc = rest[keep], lbs[keep], lbc[keep]
+                lbs = self.speed_bound(aq, rest)
+                keep = (lbs < pool.combined) & _cone.alive(self, aq, gates, rest, self.cone)
+                rest, lbs = rest[keep], lbs[keep]
+                if rest.size > self.gather_fraction * aq.n_windows:
+                    lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
+                else:
+                    lb1 = self.first_bound(aq, rest)
+                lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
+                keep = (lb1 < gates.at(rest)) & (lbc < pool.combined)
+                rest, lbs, lbc = rest[keep], lbs[keep], lbc[keep]
         else:
             # fewer than the pool's best few below the gate yet: the speed bound prunes
             # nothing (a window below the gate enters whatever its speed profile); the
@@ -408,6 +411,24 @@ class IndexSearch:
         self.stats.bounded += head.size + rest.size
         self._drain(aq, gates, pool, rest, lbs, lbc, known)
         return pool
+
+    def _shape_then_speed(self, aq: ArcQuery, gates: _Gates, tau: float,
+                          rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """The windows ``rest`` (through the screen) whose shape bound is below their gate
+        and ``tau``, and then whose speed and combined bounds are: those bounds. The same
+        windows as the speed bound first (hypot(a, b) ≥ a), in the order that reads least
+        under ``"none"``, whose per-axis shape bound sifts far more (:func:`._cone.shape_first`)."""
+        rest = rest[_cone.alive(self, aq, gates, rest, self.cone)]
+        if rest.size > self.gather_fraction * aq.n_windows:
+            lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
+        else:
+            lb1 = self.first_bound(aq, rest)
+        keep = (lb1 < gates.at(rest)) & (lb1 < tau)
+        rest, lb1 = rest[keep], lb1[keep]
+        lbs = self.speed_bound(aq, rest)
+        lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
+        keep = (lbs < tau) & (lbc < tau)
+        return rest[keep], lbs[keep], lbc[keep]
 
     def _few(self, aq: ArcQuery, gates: _Gates, pool: CandidatePool) -> None:
         """Few windows (≤ ``chunk``): every valid one bounded at once (from slices when most
