@@ -149,9 +149,7 @@ def test_rotation_none_after_the_screen_the_shape_bound_first_keeps_the_same_see
     opts = SearchOptions(rotation="none", time_scale=time_scale)
     taken = []
     real = IndexSearch._shape_then_speed
-    monkeypatch.setattr(
-        IndexSearch, "_shape_then_speed", lambda *x: taken.append(1) or real(*x)
-    )
+    monkeypatch.setattr(IndexSearch, "_shape_then_speed", lambda *x: taken.append(1) or real(*x))
     for a, b in [(0.0, 0.05), (0.2, 0.24), (0.5, 0.58), (0.3, 0.5)]:
         for eps in (0.05, 0.5, 2.0):  # the larger: the first batch fills the pool
             pruned = IndexSearch(bank, opts, chunk=256, first_batch=64)

@@ -353,7 +353,8 @@ class IndexSearch:
         one pass over every window with the time-scale test (:meth:`in_range`, which any
         window scored must pass) and a cheap speed bound (2 groups) against it; on what
         passes, the tighter speed bound and the half-window shape bound (for ``"none"`` the
-        shape bound first, :func:`._cone.shape_first`: it sifts far more), and in increasing
+        shape bound first, :func:`._cone.shape_first` or after the screen
+        :meth:`_shape_then_speed`: it sifts far more), and in increasing
         order of the two combined (ℓ·τ and shape add in quadrature in the score) the
         principal-value bound and exact scores, until the next bound reaches the pool's
         threshold (:meth:`_drain`). A window is left out only when its time scale is out of
@@ -413,7 +414,7 @@ class IndexSearch:
         return pool
 
     def _shape_then_speed(self, aq: ArcQuery, gates: _Gates, tau: float,
-                          rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+                          rest: np.ndarray) -> tuple[np.ndarray, ...]:  # fmt: skip
         """The windows ``rest`` (through the screen) whose shape bound is below their gate
         and ``tau``, and then whose speed and combined bounds are: those bounds. The same
         windows as the speed bound first (hypot(a, b) ≥ a), in the order that reads least
