@@ -395,10 +395,7 @@ class IndexSearch:
                 lbs = self.speed_bound(aq, rest)
                 keep = (lbs < pool.combined) & _cone.alive(self, aq, gates, rest, self.cone)
                 rest, lbs = rest[keep], lbs[keep]
-                if rest.size > self.gather_fraction * aq.n_windows:
-                    lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
-                else:
-                    lb1 = self.first_bound(aq, rest)
+                lb1 = self._shape_bound(aq, rest)
                 lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
                 keep = (lb1 < gates.at(rest)) & (lbc < pool.combined)
                 rest, lbs, lbc = rest[keep], lbs[keep], lbc[keep]
@@ -420,16 +417,20 @@ class IndexSearch:
         windows as the speed bound first (hypot(a, b) ≥ a), in the order that reads least
         under ``"none"``, whose per-axis shape bound sifts far more (:func:`._cone.shape_first`)."""
         rest = rest[_cone.alive(self, aq, gates, rest, self.cone)]
-        if rest.size > self.gather_fraction * aq.n_windows:
-            lb1 = self.first_bound(aq)[rest]  # contiguous: cheaper than gathering
-        else:
-            lb1 = self.first_bound(aq, rest)
+        lb1 = self._shape_bound(aq, rest)
         keep = (lb1 < gates.at(rest)) & (lb1 < tau)
         rest, lb1 = rest[keep], lb1[keep]
         lbs = self.speed_bound(aq, rest)
         lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
         keep = (lbs < tau) & (lbc < tau)
         return rest[keep], lbs[keep], lbc[keep]
+
+    def _shape_bound(self, aq: ArcQuery, rest: np.ndarray) -> np.ndarray:
+        """:meth:`first_bound` of windows ``rest``: taken on every window and picked where
+        they are more than ``gather_fraction`` of them (contiguous: cheaper than gathering)."""
+        if rest.size > self.gather_fraction * aq.n_windows:
+            return self.first_bound(aq)[rest]
+        return self.first_bound(aq, rest)
 
     def _few(self, aq: ArcQuery, gates: _Gates, pool: CandidatePool) -> None:
         """Few windows (≤ ``chunk``): every valid one bounded at once (from slices when most
