@@ -19,7 +19,11 @@ Below the table, each case's whole searches (the paper's Step 2 probes) and its 
 search, path by path, and each restricted case's cost per search against the default's
 (``_per_search``): a restricted answer has more, shorter segments, each cut proven by a
 search that fails one sample past it, so it is slower unless its searches are cheaper by as
-much.
+much. Then (``_needed``) what that takes, path by path: the default's CPU over the restricted
+case's whole searches, beside the 10th percentile and median of what each of its searches
+costs (each timed, ``_search_clock``), and the case's time over the default's were every
+search to cost one or the other: where a need lies below the median, no cut of the costliest
+searches alone (the tail) meets the goal.
 
 Run: ``python benchmarks/bench_match_novel.py [--paths 3] [--samples 2400]
 [--big [--big-cases CASE ...]] [--long] [--baseline REV | --no-baseline]
@@ -53,6 +57,7 @@ searches it (``primlib/match/_grid.py``): on 1,000 primitives a path with three 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
@@ -139,7 +144,7 @@ def worker(spec: dict) -> dict:
     for label in spec["cases"]:
         case, _, at = label.partition(", ")
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in CASES[case].items()}
-        times, cpu, segs, frac, probes = [], [], [], [], []
+        times, cpu, segs, frac, probes, each = [], [], [], [], [], []
         for seed in spec.get("seeds", range(spec["paths"])):
             n = spec["samples"]
             if spec.get("file"):  # one stored path, timed ``paths`` times
@@ -164,7 +169,8 @@ def worker(spec: dict) -> dict:
             if spec.get("warm"):  # the second call on the index: the first one untimed
                 segment_path(index, pts, path.duration / (n - 1), eps, **kw, **more)
             t0, c0 = time.perf_counter(), time.process_time()
-            s, info = segment_path(index, pts, path.duration / (n - 1), eps, **kw, **more)
+            with _search_clock() as clock:
+                s, info = segment_path(index, pts, path.duration / (n - 1), eps, **kw, **more)
             if shortest is not None:  # as match_path: matches shorter than it dropped after
                 s = drop_short(s, shortest / path.duration, 3)
             times.append(time.perf_counter() - t0)
@@ -172,9 +178,37 @@ def worker(spec: dict) -> dict:
             segs.append([(round(x.end, 9), x.primitive) for x in s])
             frac.append(sum(x.end - x.start for x in s if x.primitive is not None))
             probes.append(int(info.get("probes", 0)))  # whole searches (the paper's Step 2)
+            each.append(clock)
         out[label] = {"times": times, "cpu": cpu, "segments": segs, "fraction": frac,
-                      "probes": probes}  # fmt: skip
+                      "probes": probes, "search_cpu": each}  # fmt: skip
     return out
+
+
+@contextlib.contextmanager
+def _search_clock():
+    """The CPU seconds of each whole search (the segmenter's ``probe``, the paper's Step 2)
+    made inside the block, in order; none recorded on a revision without that method."""
+    from primlib.match import _segment
+
+    seg = getattr(_segment, "_Segmenter", None)
+    probe = getattr(seg, "probe", None)
+    clock: list[float] = []
+    if probe is None:
+        yield clock
+        return
+
+    def timed(self, a, b):
+        c0 = time.process_time()
+        try:
+            return probe(self, a, b)
+        finally:
+            clock.append(time.process_time() - c0)
+
+    seg.probe = timed
+    try:
+        yield clock
+    finally:
+        seg.probe = probe
 
 
 def _with_rests(pts, rests: int = 3, length: int = REST):
@@ -279,6 +313,7 @@ def _report(spec: dict, new: dict, old: dict | None) -> None:
     for label in spec["cases"]:
         print(f"- {label}: {_per_path_cuts(new[label], (old or {}).get(label))}")
     _per_search(spec, new)
+    _needed(spec, new)
     _over_default(spec, new)
     _unmatched_over_matched(spec, new, old)
     _rests_over_moving(spec, new, old)
@@ -359,6 +394,38 @@ def _per_search(spec: dict, new: dict) -> None:
             ratios = [d / m for m, d in zip(per[label], per["default"], strict=True)]
             print(f"- {label}, CPU per search against the default's (default / this, >1: "
                   f"cheaper): {', '.join(f'{x:.2f}x' for x in ratios)}")  # fmt: skip
+
+
+def _needed(spec: dict, new: dict) -> None:
+    """For each restricted case, path by path, the CPU a whole search of it may cost for the
+    case to be no slower than the default on that path (the default's CPU over this case's
+    whole searches) beside what its searches cost: the 10th percentile and the median, the
+    share of its searches at or under the need, and the case's CPU over the default's were
+    every one of its searches to cost its 10th percentile, or its median.
+
+    With every search at its median (no tail left) above 1x, no cut of the costliest
+    searches alone meets "never slower"; with every search at its 10th percentile above 1x,
+    every search would have to cost less than the cheapest tenth of them does today."""
+    import numpy as np
+
+    timed = all(any(map(len, new[c].get("search_cpu", []))) for c in spec["cases"])
+    if "default" not in spec["cases"] or len(spec["cases"]) < 2 or not timed:
+        return  # nothing to divide by, or a revision whose searches are not timed
+    print(
+        "\nNever slower needs, per whole search: the default's CPU / this case's searches; "
+        "this case's searches: 10th percentile / median, the share at or under the need; "
+        "the case over the default with every search at its 10th percentile / median:"
+    )
+    base = new["default"]["cpu"]
+    for label in (c for c in spec["cases"] if c != "default"):
+        cells = []
+        for d, each in zip(base, new[label]["search_cpu"], strict=True):
+            ms = 1e3 * np.asarray(each)
+            need, p10, med = 1e3 * d / ms.size, np.percentile(ms, 10), np.median(ms)
+            cells.append(f"{need:.1f} ms: {p10:.1f} / {med:.1f} ms, "
+                         f"{100 * np.mean(ms <= need):.0f} %; "
+                         f"{p10 / need:.2f}x / {med / need:.2f}x")  # fmt: skip
+        print(f"- {label}: {' | '.join(cells)}")
 
 
 def _over_default(spec: dict, new: dict) -> None:

@@ -58,6 +58,41 @@ def test_per_search_is_left_out_for_a_revision_that_does_not_count_searches(benc
     assert capsys.readouterr().out == ""
 
 
+def test_needed_divides_the_default_by_the_searches_and_places_it_among_them(bench, capsys):
+    """The need is the default's CPU over the restricted case's whole searches (0.1 s over
+    10 searches: 10 ms); beside it the searches' 10th percentile and median (2, 4, ..., 20
+    ms: 3.8 and 11.0 by linear interpolation), the share at or under the need (5 of 10), and
+    10 searches at 3.8 / 11.0 ms over the default's 0.1 s: 0.38x / 1.10x."""
+    spec = {"cases": ["default", "rotation none"]}
+    each = [0.002 * (i + 1) for i in range(10)]
+    new = {"default": {"cpu": [0.1], "search_cpu": [[0.05, 0.05]]},
+           "rotation none": {"cpu": [0.11], "search_cpu": [each]}}  # fmt: skip
+    bench._needed(spec, new)
+    assert "- rotation none: 10.0 ms: 3.8 / 11.0 ms, 50 %; 0.38x / 1.10x" in capsys.readouterr().out
+    del new["rotation none"]["search_cpu"]  # a revision whose searches are not timed
+    bench._needed(spec, new)
+    assert capsys.readouterr().out == ""
+
+
+def test_search_clock_times_each_whole_search_and_puts_the_method_back(bench):
+    """One CPU time per whole search the segmentation counts, and the segmenter's own method
+    back after the block."""
+    import numpy as np
+
+    from primlib.match import BankIndex, default_eps, segment_path
+    from primlib.match._segment import _Segmenter
+
+    bank, dt = bench._library("bundled")
+    path = bench._walk(np.random.default_rng(7), 300, dt, 8)
+    pts = path.at(np.linspace(0.0, 1.0, 300))
+    before = _Segmenter.probe
+    with bench._search_clock() as clock:
+        _, info = segment_path(BankIndex(bank), pts, dt, default_eps(path))
+    assert len(clock) == info["probes"] > 0
+    assert all(c >= 0.0 for c in clock)
+    assert _Segmenter.probe is before
+
+
 def test_noisy_paths_add_seeded_noise_and_scale_eps_by_its_rms(bench):
     """The noise is white with σ the given fraction of the largest extent (sample std within
     10 %: ~4 standard errors for 3,000 draws), the same draw for a path's every case, and
