@@ -422,7 +422,7 @@ class IndexSearch:
         rest, lb1 = rest[keep], lb1[keep]
         lbs = self.speed_bound(aq, rest)
         lbc = np.hypot(np.maximum(lb1, 0.0), np.maximum(lbs, 0.0))
-        keep = (lbs < tau) & (lbc < tau)
+        keep = lbc < tau  # hypot(a, b) >= b: the speed bound is below tau too
         return rest[keep], lbs[keep], lbc[keep]
 
     def _shape_bound(self, aq: ArcQuery, rest: np.ndarray) -> np.ndarray:
